@@ -1,0 +1,48 @@
+// `arreg bench <what>`: speed benchmarks that print figures and write JSON.
+// Each benchmark lives in its own apps/bench_*.cc; this file only dispatches.
+#include <cstdio>
+#include <string>
+
+#include "commands.h"
+#include "core/error.h"
+
+namespace arreg::cli {
+
+namespace {
+struct Bench {
+  const char* name;
+  int (*run)(int argc, char** argv);
+  const char* summary;
+};
+
+// Keep in step with README.md ("Benchmarks").
+const Bench kBenches[] = {
+    {"mechanics", RunBenchMechanics, "implicit corotational FEM step driven by springs"},
+};
+
+void PrintBenchUsage(std::FILE* out) {
+  std::fprintf(out,
+               "usage: arreg bench <what> [options]\n"
+               "       arreg bench <what> --help\n\n"
+               "Speed benchmarks: each prints its figures (medians over repeated runs, one\n"
+               "thread) and writes them as JSON with --json OUT.\n\nbenchmarks:\n");
+  for (const auto& b : kBenches) std::fprintf(out, "  %-10s %s\n", b.name, b.summary);
+}
+}  // namespace
+
+int RunBench(int argc, char** argv) {
+  if (argc < 2) {
+    PrintBenchUsage(stderr);
+    return 2;
+  }
+  const std::string what = argv[1];
+  if (what == "--help" || what == "-h") {
+    PrintBenchUsage(stdout);
+    return 0;
+  }
+  for (const auto& b : kBenches)
+    if (what == b.name) return b.run(argc - 1, argv + 1);
+  throw Error("", "bench '" + what + "'", "unknown benchmark (see arreg bench --help)");
+}
+
+}  // namespace arreg::cli

@@ -1,0 +1,14 @@
+// The `arreg` subcommands. Each RunX() parses its own options, calls into the
+// library and returns the process exit code; errors propagate as exceptions
+// and main() turns them into a one-line message and exit code 1 (2 for usage).
+#pragma once
+
+namespace arreg::cli {
+
+int RunInfo(int argc, char** argv);
+int RunBench(int argc, char** argv);
+
+// Benchmarks dispatched by RunBench (apps/bench_*.cc).
+int RunBenchMechanics(int argc, char** argv);
+
+}  // namespace arreg::cli

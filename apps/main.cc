@@ -1,0 +1,66 @@
+// `arreg`: one binary, one subcommand per job (COLMAP-style dispatch).
+#include <cstdio>
+#include <cstring>
+#include <exception>
+#include <string>
+
+#include "commands.h"
+#include "core/error.h"
+#include "core/version.h"
+
+namespace {
+
+struct Command {
+  const char* name;
+  int (*run)(int argc, char** argv);
+  const char* summary;
+};
+
+// Keep in step with README.md ("Commands").
+constexpr Command kCommands[] = {
+    {"info", arreg::cli::RunInfo, "describe a mesh file (counts, volume, quality)"},
+    {"bench", arreg::cli::RunBench, "speed benchmarks that print figures and write JSON"},
+};
+
+void PrintUsage(std::FILE* out) {
+  std::fprintf(out,
+               "usage: arreg <command> [options]\n"
+               "       arreg <command> --help\n"
+               "       arreg --version\n\n"
+               "Registers a pre-operative organ model to laparoscopic video and keeps the\n"
+               "registration right through cuts and tears.\n\ncommands:\n");
+  for (const auto& c : kCommands) std::fprintf(out, "  %-8s %s\n", c.name, c.summary);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    PrintUsage(stderr);
+    return 2;
+  }
+  const std::string name = argv[1];
+  if (name == "--help" || name == "-h" || name == "help") {
+    PrintUsage(stdout);
+    return 0;
+  }
+  if (name == "--version") {
+    std::printf("arreg %s\n", arreg::kVersion);
+    return 0;
+  }
+  for (const auto& c : kCommands) {
+    if (name != c.name) continue;
+    try {
+      // Subcommands see argv shifted by one: argv[0] = "arreg <name>".
+      return c.run(argc - 1, argv + 1);
+    } catch (const arreg::Error& e) {
+      std::fprintf(stderr, "arreg %s: error: %s\n", c.name, e.what());
+      return 1;
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "arreg %s: internal error: %s\n", c.name, e.what());
+      return 3;
+    }
+  }
+  std::fprintf(stderr, "arreg: unknown command '%s' (see arreg --help)\n", name.c_str());
+  return 2;
+}

@@ -1,0 +1,71 @@
+# Helpers that give every target the same flags and enforce the module layering.
+#
+# Module layering (who may link whom). A module may depend only on the modules
+# listed for it; arreg_add_module() fails the configure step otherwise, so a
+# cycle or an upward include cannot creep in.
+set(ARREG_ALLOWED_DEPS_core "")
+set(ARREG_ALLOWED_DEPS_tracking "core")
+set(ARREG_ALLOWED_DEPS_mechanics "core")
+set(ARREG_ALLOWED_DEPS_cutting "core;mechanics")
+set(ARREG_ALLOWED_DEPS_ar "core;tracking;mechanics;cutting")
+
+function(arreg_set_common_options target)
+  target_compile_options(${target} PRIVATE
+    $<$<CXX_COMPILER_ID:GNU,Clang>:-Wall -Wextra -Wpedantic -Wno-unused-parameter>)
+  if(ARREG_NATIVE)
+    target_compile_options(${target} PRIVATE -march=native)
+  endif()
+  if(ARREG_SANITIZE)
+    target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-omit-frame-pointer
+                                             -fno-sanitize-recover=undefined)
+    target_link_options(${target} PRIVATE -fsanitize=address,undefined)
+  endif()
+endfunction()
+
+# arreg_add_module(NAME SOURCES ... MODULES <arreg modules> LIBS <third-party targets>)
+function(arreg_add_module name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;MODULES;LIBS;PRIVATE_LIBS" ${ARGN})
+  if(NOT DEFINED ARREG_ALLOWED_DEPS_${name})
+    message(FATAL_ERROR "arreg module '${name}' has no entry in the layering table (cmake/ArregHelpers.cmake)")
+  endif()
+  foreach(dep IN LISTS ARG_MODULES)
+    list(FIND ARREG_ALLOWED_DEPS_${name} ${dep} idx)
+    if(idx EQUAL -1)
+      message(FATAL_ERROR "arreg module '${name}' may not depend on '${dep}' "
+                          "(allowed: ${ARREG_ALLOWED_DEPS_${name}}); see the layering table in README.md")
+    endif()
+  endforeach()
+  set(module_targets "")
+  foreach(dep IN LISTS ARG_MODULES)
+    list(APPEND module_targets arreg_${dep})
+  endforeach()
+  add_library(arreg_${name} STATIC ${ARG_SOURCES})
+  add_library(arreg::${name} ALIAS arreg_${name})
+  target_include_directories(arreg_${name} PUBLIC "${PROJECT_SOURCE_DIR}/src")
+  target_link_libraries(arreg_${name} PUBLIC ${module_targets} ${ARG_LIBS} PRIVATE ${ARG_PRIVATE_LIBS})
+  arreg_set_common_options(arreg_${name})
+endfunction()
+
+# arreg_add_test(NAME SOURCES ... LIBS ... [LABELS ...] [TIMEOUT s])
+# One GoogleTest executable per call, registered with CTest test by test
+# (gtest_discover_tests) so that `ctest -L slow` / `-LE slow` select them.
+function(arreg_add_test name)
+  cmake_parse_arguments(ARG "" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+  add_executable(${name} ${ARG_SOURCES})
+  target_link_libraries(${name} PRIVATE ${ARG_LIBS} GTest::gtest GTest::gtest_main)
+  target_include_directories(${name} PRIVATE "${PROJECT_SOURCE_DIR}/tests")
+  target_compile_definitions(${name} PRIVATE
+    ARREG_SOURCE_DIR="${PROJECT_SOURCE_DIR}"
+    ARREG_BINARY_DIR="${PROJECT_BINARY_DIR}")
+  arreg_set_common_options(${name})
+  if(NOT ARG_TIMEOUT)
+    set(ARG_TIMEOUT 300)
+  endif()
+  if(NOT ARG_LABELS)
+    set(ARG_LABELS unit)
+  endif()
+  gtest_discover_tests(${name}
+    WORKING_DIRECTORY "${PROJECT_SOURCE_DIR}"
+    PROPERTIES LABELS "${ARG_LABELS}" TIMEOUT ${ARG_TIMEOUT}
+    DISCOVERY_TIMEOUT 60)
+endfunction()
