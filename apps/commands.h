@@ -5,10 +5,8 @@
 
 namespace arreg::cli {
 
-int RunInfo(int argc, char** argv);
 int RunBench(int argc, char** argv);
 
 // Benchmarks dispatched by RunBench (apps/bench_*.cc).
-int RunBenchMechanics(int argc, char** argv);
 
 }  // namespace arreg::cli

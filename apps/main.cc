@@ -18,7 +18,6 @@ struct Command {
 
 // Keep in step with README.md ("Commands").
 constexpr Command kCommands[] = {
-    {"info", arreg::cli::RunInfo, "describe a mesh file (counts, volume, quality)"},
     {"bench", arreg::cli::RunBench, "speed benchmarks that print figures and write JSON"},
 };
 

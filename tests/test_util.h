@@ -1,0 +1,37 @@
+// Helpers shared by the tests: locating ../shared/data (tests that need it
+// skip cleanly when it is absent) and scratch directories.
+#pragma once
+
+#include <filesystem>
+#include <cstdlib>
+#include <string>
+
+namespace arreg::testing {
+
+// Absolute path of `relative` under the shared data folder (../shared/data
+// beside the checkout, or $ARREG_SHARED_DATA), or "" when it does not exist.
+inline std::string SharedDataPath(const std::string& relative) {
+  namespace fs = std::filesystem;
+  std::string root;
+  if (const char* env = std::getenv("ARREG_SHARED_DATA")) root = env;
+  else root = std::string(ARREG_SOURCE_DIR) + "/../shared/data";
+  const fs::path p = fs::path(root) / relative;
+  std::error_code ec;
+  return fs::exists(p, ec) ? fs::weakly_canonical(p).string() : std::string();
+}
+
+// A fresh, empty scratch directory under the build tree for this test.
+inline std::string ScratchDir(const std::string& name) {
+  namespace fs = std::filesystem;
+  const fs::path p = fs::path(ARREG_BINARY_DIR) / "test_scratch" / name;
+  fs::remove_all(p);
+  fs::create_directories(p);
+  return p.string();
+}
+
+}  // namespace arreg::testing
+
+// Skips the current test with a message when shared data is missing.
+#define ARREG_REQUIRE_SHARED(var, relative)                                           \
+  const std::string var = ::arreg::testing::SharedDataPath(relative);                 \
+  if (var.empty()) GTEST_SKIP() << "../shared/data/" << (relative) << " not present; skipped"
