@@ -28,7 +28,7 @@ struct Ray {
 // (k1, k2, p1, p2[, k3[, k4, k5, k6]]).
 struct Distortion {
   double k1 = 0.0, k2 = 0.0, p1 = 0.0, p2 = 0.0, k3 = 0.0;  // dimensionless
-  double k4 = 0.0, k5 = 0.0, k6 = 0.0;                       // rational denominator
+  double k4 = 0.0, k5 = 0.0, k6 = 0.0;                      // rational denominator
 
   bool IsZero() const;
   // Accepts 4, 5, 8 coefficients, or OpenCV's 12/14 when the thin-prism and tilt
@@ -52,8 +52,8 @@ struct UndistortOptions {
 
 struct UndistortSummary {
   bool converged = false;
-  int iterations = 0;           // fixed-point + Newton iterations done
-  double residual = 0.0;        // final |Distort(x) - x_d|, normalized units
+  int iterations = 0;     // fixed-point + Newton iterations done
+  double residual = 0.0;  // final |Distort(x) - x_d|, normalized units
 };
 
 // Camera frame convention (OpenCV): x to the right in the image, y down, z
@@ -63,8 +63,8 @@ struct UndistortSummary {
 // Lengths (translations, depths) are in millimetres, arreg's internal unit.
 class PinholeCamera {
  public:
-  int width = 0;   // image width, px
-  int height = 0;  // image height, px
+  int width = 0;              // image width, px
+  int height = 0;             // image height, px
   double fx = 0.0, fy = 0.0;  // focal lengths, px
   double cx = 0.0, cy = 0.0;  // principal point, px
   Distortion distortion;

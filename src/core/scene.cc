@@ -1,0 +1,236 @@
+#include "core/scene.h"
+
+#include <cmath>
+#include <filesystem>
+#include <set>
+
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/json_reader.h"
+
+namespace arreg {
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::vector<std::string> kModuleSections = {"tracking", "mechanics", "lifting",
+                                                  "cutting",  "render",    "output"};
+
+nlohmann::json* ModuleSection(Scene* scene, const std::string& name) {
+  if (name == "tracking") return &scene->tracking;
+  if (name == "mechanics") return &scene->mechanics;
+  if (name == "lifting") return &scene->lifting;
+  if (name == "cutting") return &scene->cutting;
+  if (name == "render") return &scene->render;
+  return &scene->output;
+}
+
+const nlohmann::json& ModuleSection(const Scene& scene, const std::string& name) {
+  return *ModuleSection(const_cast<Scene*>(&scene), name);
+}
+
+// Resolves a path read from the scene and, when asked, checks that it exists.
+std::string CheckedPath(const std::string& value, const std::string& file,
+                        const std::string& key_path, const Scene& scene, bool check_exists,
+                        bool want_directory) {
+  if (value.empty()) throw Error(file, key_path, "path is empty");
+  const std::string resolved = scene.ResolvePath(value);
+  if (check_exists) {
+    std::error_code ec;
+    const fs::file_status status = fs::status(resolved, ec);
+    if (!fs::exists(status))
+      throw Error(file, key_path,
+                  "\"" + value + "\" does not exist (resolved to " + resolved + ")");
+    if (want_directory && !fs::is_directory(status))
+      throw Error(file, key_path, "\"" + value + "\" is not a directory");
+    if (!want_directory && fs::is_directory(status))
+      throw Error(file, key_path, "\"" + value + "\" is a directory, expected a file");
+  }
+  return resolved;
+}
+
+// Reads a path-valued key; "" when optional and absent.
+std::string ReadPath(JsonObjectReader& reader, const std::string& key, const Scene& scene,
+                     bool required, bool check_exists, bool want_directory) {
+  std::string value;
+  if (required) {
+    reader.Required(key, &value);
+  } else if (!reader.Optional(key, &value)) {
+    return "";
+  }
+  return CheckedPath(value, reader.file(), reader.KeyPath(key), scene, check_exists,
+                     want_directory);
+}
+
+Material ReadMaterial(JsonObjectReader& r) {
+  Material m;
+  r.Optional("youngs_modulus_pa", &m.youngs_modulus_pa);
+  r.Optional("poisson_ratio", &m.poisson_ratio);
+  r.Optional("density_kg_m3", &m.density_kg_m3);
+  r.Optional("rayleigh_mass_per_s", &m.rayleigh_mass_per_s);
+  r.Optional("rayleigh_stiffness_s", &m.rayleigh_stiffness_s);
+  r.Finish();
+  m.Check(r.file(), r.path());
+  return m;
+}
+
+std::string PathForWriting(const std::string& path, const std::string& directory) {
+  if (path.empty()) return path;
+  const fs::path p = fs::absolute(path).lexically_normal();
+  const fs::path dir = fs::absolute(directory.empty() ? "." : directory).lexically_normal();
+  const fs::path rel = p.lexically_relative(dir);
+  if (rel.empty() || *rel.begin() == "..") return p.string();
+  return rel.string();
+}
+
+}  // namespace
+
+void Material::Check(const std::string& file, const std::string& prefix) const {
+  const auto field = [&](const char* name) { return prefix.empty() ? name : prefix + "." + name; };
+  ARREG_CHECK_INPUT(youngs_modulus_pa > 0.0 && std::isfinite(youngs_modulus_pa), file,
+                    field("youngs_modulus_pa"), "must be positive, got ", youngs_modulus_pa);
+  ARREG_CHECK_INPUT(poisson_ratio > -1.0 && poisson_ratio < 0.5, file, field("poisson_ratio"),
+                    "must be in (-1, 0.5), got ", poisson_ratio);
+  ARREG_CHECK_INPUT(density_kg_m3 > 0.0 && std::isfinite(density_kg_m3), file,
+                    field("density_kg_m3"), "must be positive, got ", density_kg_m3);
+  ARREG_CHECK_INPUT(rayleigh_mass_per_s >= 0.0 && std::isfinite(rayleigh_mass_per_s), file,
+                    field("rayleigh_mass_per_s"), "must be >= 0, got ", rayleigh_mass_per_s);
+  ARREG_CHECK_INPUT(rayleigh_stiffness_s >= 0.0 && std::isfinite(rayleigh_stiffness_s), file,
+                    field("rayleigh_stiffness_s"), "must be >= 0, got ", rayleigh_stiffness_s);
+}
+
+std::string Scene::ResolvePath(const std::string& relative) const {
+  if (relative.empty()) return relative;
+  const fs::path p(relative);
+  if (p.is_absolute() || directory.empty()) return p.lexically_normal().string();
+  return (fs::path(directory) / p).lexically_normal().string();
+}
+
+Scene ParseScene(const nlohmann::json& json, const std::string& path,
+                 const ReadSceneOptions& options) {
+  Scene scene;
+  scene.path = path;
+  scene.directory = path.empty()
+                        ? fs::current_path().string()
+                        : fs::absolute(fs::path(path)).parent_path().lexically_normal().string();
+  const bool check = options.check_files_exist;
+
+  JsonObjectReader root(json, path, "");
+  if (root.OptionalChoice("units", {"mm", "m"}, &scene.units))
+    scene.mm_per_unit = scene.units == "m" ? 1000.0 : 1.0;
+  root.Optional("description", &scene.description);
+
+  // model: "mesh path" or {"mesh": ..., "world_from_model": {...}}
+  {
+    nlohmann::json model;
+    root.Required("model", &model);
+    if (model.is_string()) {
+      scene.model_mesh_path =
+          CheckedPath(model.get<std::string>(), path, "model", scene, check, false);
+    } else {
+      JsonObjectReader r = root.Object("model");
+      scene.model_mesh_path = ReadPath(r, "mesh", scene, true, check, false);
+      if (auto placement = r.OptionalObject("world_from_model"))
+        scene.world_from_model = ReadRigidTransformJson(*placement);
+      r.Finish();
+    }
+  }
+
+  std::set<std::string> names;
+  for (JsonObjectReader& r : root.ObjectArray("internal_structures")) {
+    InternalStructure s;
+    r.Required("name", &s.name);
+    if (s.name.empty()) r.Fail("name", "must not be empty");
+    if (!names.insert(s.name).second) r.Fail("name", "duplicate structure name \"" + s.name + "\"");
+    s.mesh_path = ReadPath(r, "mesh", scene, true, check, false);
+    if (r.Optional("color", &s.color_rgb)) {
+      for (int i = 0; i < 3; ++i)
+        if (!(s.color_rgb[i] >= 0.0 && s.color_rgb[i] <= 1.0))
+          r.Fail("color", "RGB components must be in [0, 1] (divide 0-255 values by 255)");
+    }
+    r.Optional("opacity", &s.opacity);
+    r.CheckInRange("opacity", s.opacity, 0.0, 1.0);
+    r.Finish();
+    scene.internal_structures.push_back(std::move(s));
+  }
+
+  // camera: inline object or calibration file path.
+  {
+    nlohmann::json camera;
+    root.Required("camera", &camera);
+    if (camera.is_string()) {
+      scene.camera_file = ReadPath(root, "camera", scene, true, true, false);
+      try {
+        scene.camera = ReadCameraFile(scene.camera_file);
+      } catch (const Error& e) {
+        throw Error(path, "camera", std::string("in calibration file: ") + e.what());
+      }
+    } else {
+      JsonObjectReader r = root.Object("camera");
+      scene.camera = ReadCameraJson(r);
+    }
+  }
+
+  scene.video_path = ReadPath(root, "video", scene, true, check, false);
+  scene.ground_truth_path = ReadPath(root, "ground_truth", scene, false, check, true);
+
+  if (auto material = root.OptionalObject("material")) scene.material = ReadMaterial(*material);
+
+  for (const std::string& name : kModuleSections) {
+    if (auto section = root.OptionalObject(name)) *ModuleSection(&scene, name) = section->json();
+  }
+  root.Finish();
+  return scene;
+}
+
+Scene ReadScene(const std::string& path, const ReadSceneOptions& options) {
+  const nlohmann::json json = ParseJsonFile(path);
+  return ParseScene(json, path, options);
+}
+
+nlohmann::json SceneToJson(const Scene& scene, const std::string& directory) {
+  nlohmann::json j;
+  j["units"] = scene.units;
+  if (!scene.description.empty()) j["description"] = scene.description;
+  nlohmann::json model = {{"mesh", PathForWriting(scene.model_mesh_path, directory)}};
+  if (scene.world_from_model.matrix() != Eigen::Matrix4d::Identity())
+    model["world_from_model"] = RigidTransformToJson(scene.world_from_model);
+  j["model"] = model;
+  if (!scene.internal_structures.empty()) {
+    nlohmann::json list = nlohmann::json::array();
+    for (const InternalStructure& s : scene.internal_structures) {
+      list.push_back({{"name", s.name},
+                      {"mesh", PathForWriting(s.mesh_path, directory)},
+                      {"color", {s.color_rgb.x(), s.color_rgb.y(), s.color_rgb.z()}},
+                      {"opacity", s.opacity}});
+    }
+    j["internal_structures"] = list;
+  }
+  j["camera"] = CameraToJson(scene.camera);
+  j["video"] = PathForWriting(scene.video_path, directory);
+  if (!scene.ground_truth_path.empty())
+    j["ground_truth"] = PathForWriting(scene.ground_truth_path, directory);
+  const Material& m = scene.material;
+  j["material"] = {{"youngs_modulus_pa", m.youngs_modulus_pa},
+                   {"poisson_ratio", m.poisson_ratio},
+                   {"density_kg_m3", m.density_kg_m3},
+                   {"rayleigh_mass_per_s", m.rayleigh_mass_per_s},
+                   {"rayleigh_stiffness_s", m.rayleigh_stiffness_s}};
+  for (const std::string& name : kModuleSections) {
+    const nlohmann::json& section = ModuleSection(scene, name);
+    if (!section.is_null() && !section.empty()) j[name] = section;
+  }
+  return j;
+}
+
+void WriteScene(const std::string& path, const Scene& scene) {
+  ARREG_CHECK_INPUT(!scene.model_mesh_path.empty(), path, "model.mesh", "scene has no model mesh");
+  ARREG_CHECK_INPUT(!scene.video_path.empty(), path, "video", "scene has no video path");
+  scene.camera.Check(path, "camera");
+  scene.material.Check(path, "material");
+  const std::string directory = fs::absolute(fs::path(path)).parent_path().string();
+  const std::string text = SceneToJson(scene, directory).dump(2) + "\n";
+  WriteFileAtomic(path, [&](std::ostream& os) { os << text; });
+}
+
+}  // namespace arreg

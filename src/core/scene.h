@@ -1,0 +1,92 @@
+// The scene file: one JSON document naming the organ model, internal structures,
+// camera, video and per-module settings of a registration run (docs/scene-format.md).
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "core/camera.h"
+
+namespace arreg {
+
+// Tissue parameters shared by mechanics and cutting.
+struct Material {
+  double youngs_modulus_pa = 5000.0;  // Pa; soft liver/kidney parenchyma is a few kPa
+  double poisson_ratio = 0.45;        // dimensionless, in (-1, 0.5)
+  double density_kg_m3 = 1000.0;      // kg/m^3
+  // Rayleigh damping D = alpha M + beta K.
+  double rayleigh_mass_per_s = 0.1;    // alpha, 1/s
+  double rayleigh_stiffness_s = 0.01;  // beta, s
+  // Throws arreg::Error(file, "<prefix>.<field>") on the first invalid field.
+  void Check(const std::string& file = "", const std::string& prefix = "material") const;
+};
+
+struct InternalStructure {
+  std::string name;                                            // unique within the scene
+  std::string mesh_path;                                       // resolved (see Scene::ResolvePath)
+  Eigen::Vector3d color_rgb = Eigen::Vector3d(1.0, 1.0, 0.0);  // each in [0, 1]
+  double opacity = 1.0;                                        // in [0, 1]
+};
+
+struct Scene {
+  std::string path;       // the scene file as given to ReadScene ("" for in-memory scenes)
+  std::string directory;  // folder that relative paths are resolved against
+
+  // Unit of the coordinates in the referenced mesh files. arreg works in
+  // millimetres; loaders multiply mesh coordinates by mm_per_unit.
+  std::string units = "mm";  // "mm" or "m"
+  double mm_per_unit = 1.0;  // 1 for "mm", 1000 for "m"
+  std::string description;   // free text, optional
+
+  std::string model_mesh_path;  // tetrahedral mesh of the organ (resolved)
+  // Rigid placement of the model mesh (after unit scaling) in the world frame,
+  // translation in mm. Identity when absent.
+  Eigen::Isometry3d world_from_model = Eigen::Isometry3d::Identity();
+  std::vector<InternalStructure> internal_structures;
+
+  PinholeCamera camera;
+  std::string camera_file;  // calibration file the camera came from, "" if inline
+
+  std::string video_path;         // recorded (or synthetic) laparoscopic video (resolved)
+  std::string ground_truth_path;  // optional evaluation folder (resolved), "" if none
+
+  Material material;
+
+  // Module sections, parsed by their modules with JsonObjectReader (file = path,
+  // key path "tracking", ...). Empty objects when absent.
+  nlohmann::json tracking = nlohmann::json::object();
+  nlohmann::json mechanics = nlohmann::json::object();
+  nlohmann::json lifting = nlohmann::json::object();
+  nlohmann::json cutting = nlohmann::json::object();
+  nlohmann::json render = nlohmann::json::object();
+  nlohmann::json output = nlohmann::json::object();
+
+  // `relative` joined to `directory` (unchanged when absolute or empty).
+  std::string ResolvePath(const std::string& relative) const;
+};
+
+struct ReadSceneOptions {
+  // Fail when a referenced file or folder (model, internal structures, camera
+  // file, video, ground truth) does not exist. Off for tools that create them.
+  bool check_files_exist = true;  // default true
+};
+
+// Reads and validates a scene file. Required keys: model, camera, video;
+// unknown top-level keys (and unknown keys in model, camera, material,
+// internal_structures) are errors naming them. Every error names the file and key.
+Scene ReadScene(const std::string& path, const ReadSceneOptions& options = {});
+// Same for JSON already parsed; `path` places the scene (relative paths, messages).
+Scene ParseScene(const nlohmann::json& json, const std::string& path,
+                 const ReadSceneOptions& options = {});
+
+// The JSON that ParseScene reads back to an equal scene. Paths are written
+// relative to `directory` when they lie under it, otherwise absolute. The camera
+// is written inline.
+nlohmann::json SceneToJson(const Scene& scene, const std::string& directory);
+// Writes SceneToJson(scene, folder of `path`) atomically.
+void WriteScene(const std::string& path, const Scene& scene);
+
+}  // namespace arreg
