@@ -1,0 +1,315 @@
+#include "cutting/detection.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "core/error.h"
+
+namespace arreg::cutting {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Squared distance from c to the segment [a, b].
+double SquaredDistanceToSegment(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                const Eigen::Vector3d& c) {
+  const Eigen::Vector3d ab = b - a;
+  const double len2 = ab.squaredNorm();
+  double s = len2 > 0.0 ? (c - a).dot(ab) / len2 : 0.0;
+  s = std::clamp(s, 0.0, 1.0);
+  return (a + s * ab - c).squaredNorm();
+}
+
+}  // namespace
+
+void CutDetectorOptions::Check() const {
+  auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+  ARREG_CHECK_INPUT(positive(neighbour_radius_mm), "", "cut_detector.neighbour_radius_mm",
+                    "must be > 0, got ", neighbour_radius_mm);
+  ARREG_CHECK_INPUT(positive(outlier_factor), "", "cut_detector.outlier_factor",
+                    "must be > 0, got ", outlier_factor);
+  ARREG_CHECK_INPUT(min_outliers >= 1, "", "cut_detector.min_outliers", "must be >= 1, got ",
+                    min_outliers);
+  ARREG_CHECK_INPUT(positive(cut_point_radius_mm), "", "cut_detector.cut_point_radius_mm",
+                    "must be > 0, got ", cut_point_radius_mm);
+  ARREG_CHECK_INPUT(std::isfinite(min_outlier_measure_mm) && min_outlier_measure_mm >= 0.0, "",
+                    "cut_detector.min_outlier_measure_mm", "must be >= 0, got ",
+                    min_outlier_measure_mm);
+  ARREG_CHECK_INPUT(std::isfinite(boundary_extension_mm) && boundary_extension_mm >= 0.0, "",
+                    "cut_detector.boundary_extension_mm", "must be >= 0, got ",
+                    boundary_extension_mm);
+  ARREG_CHECK_INPUT(boundary_cone_half_angle_deg > 0.0 && boundary_cone_half_angle_deg < 90.0, "",
+                    "cut_detector.boundary_cone_half_angle_deg", "must be in (0, 90), got ",
+                    boundary_cone_half_angle_deg);
+  ARREG_CHECK_INPUT(max_cut_points_per_frame >= 1, "", "cut_detector.max_cut_points_per_frame",
+                    "must be >= 1, got ", max_cut_points_per_frame);
+}
+
+CutDetector::CutDetector(const CutDetectorOptions& options) : options_(options) {
+  options_.Check();
+}
+
+void CutDetector::Initialize(const RowMatX3d& initial_positions_mm, const std::vector<int>& ids) {
+  const int n = static_cast<int>(initial_positions_mm.rows());
+  ARREG_CHECK_INPUT(static_cast<int>(ids.size()) == n, "", "CutDetector::Initialize", "ids has ",
+                    ids.size(), " entries for ", n, " positions");
+  ARREG_CHECK_INPUT(initial_positions_mm.allFinite(), "", "CutDetector::Initialize",
+                    "initial positions must be finite");
+  initial_mm_ = initial_positions_mm;
+  index_of_id_.clear();
+  index_of_id_.reserve(2 * n);
+  for (int i = 0; i < n; ++i) {
+    const bool inserted = index_of_id_.emplace(ids[i], i).second;
+    ARREG_CHECK_INPUT(inserted, "", "CutDetector::Initialize", "feature id ", ids[i],
+                      " appears twice");
+  }
+  alive_.assign(n, 1);
+  polyline_.clear();
+  front_at_border_ = back_at_border_ = false;
+  frame_ = 0;
+  row_of_feature_.assign(n, -1);
+  model_mm_.setZero(n, 3);
+  target_mm_.setZero(n, 3);
+
+  // Uniform grid with cell size r_F: neighbours lie in the 27 surrounding cells.
+  pairs_.clear();
+  if (n == 0) return;
+  const double cell = options_.neighbour_radius_mm;
+  const double r2 = cell * cell;
+  const Eigen::RowVector3d lo = initial_mm_.colwise().minCoeff();
+  Eigen::Matrix<long long, Eigen::Dynamic, 3, Eigen::RowMajor> key(n, 3);
+  for (int i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k)
+      key(i, k) = static_cast<long long>(std::floor((initial_mm_(i, k) - lo(k)) / cell));
+  auto hash = [](long long x, long long y, long long z) {
+    return (x * 73856093LL) ^ (y * 19349663LL) ^ (z * 83492791LL);
+  };
+  std::unordered_multimap<long long, int> grid;
+  grid.reserve(2 * n);
+  for (int i = 0; i < n; ++i) grid.emplace(hash(key(i, 0), key(i, 1), key(i, 2)), i);
+  for (int i = 0; i < n; ++i) {
+    for (long long dx = -1; dx <= 1; ++dx)
+      for (long long dy = -1; dy <= 1; ++dy)
+        for (long long dz = -1; dz <= 1; ++dz) {
+          const long long cx = key(i, 0) + dx, cy = key(i, 1) + dy, cz = key(i, 2) + dz;
+          auto range = grid.equal_range(hash(cx, cy, cz));
+          for (auto it = range.first; it != range.second; ++it) {
+            const int j = it->second;
+            // The hash may collide: compare the real cell keys.
+            if (j <= i || key(j, 0) != cx || key(j, 1) != cy || key(j, 2) != cz) continue;
+            if ((initial_mm_.row(i) - initial_mm_.row(j)).squaredNorm() < r2)
+              pairs_.push_back({i, j});
+          }
+        }
+  }
+  std::sort(pairs_.begin(), pairs_.end(), [](const FeaturePair& a, const FeaturePair& b) {
+    return a.first != b.first ? a.first < b.first : a.second < b.second;
+  });
+}
+
+void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
+  ARREG_ASSERT(result != nullptr, "");
+  const int n = num_features();
+  const int rows = static_cast<int>(frame.ids.size());
+  const std::string where = "frame " + std::to_string(frame_);
+  ARREG_CHECK_INPUT(frame.target_mm.rows() == rows && frame.model_mm.rows() == rows, "", where,
+                    "target (", frame.target_mm.rows(), ") and model (", frame.model_mm.rows(),
+                    ") rows must match the ", rows, " ids");
+
+  // Map this frame's rows to features; features not listed die.
+  std::fill(row_of_feature_.begin(), row_of_feature_.end(), -1);
+  for (int r = 0; r < rows; ++r) {
+    const auto it = index_of_id_.find(frame.ids[r]);
+    ARREG_CHECK_INPUT(it != index_of_id_.end(), "", where, "unknown feature id ", frame.ids[r]);
+    const int f = it->second;
+    ARREG_CHECK_INPUT(row_of_feature_[f] < 0, "", where, "feature id ", frame.ids[r],
+                      " appears twice");
+    ARREG_CHECK_INPUT(alive_[f], "", where, "feature id ", frame.ids[r],
+                      " was lost in an earlier frame and cannot come back");
+    row_of_feature_[f] = r;
+    model_mm_.row(f) = frame.model_mm.row(r);
+    target_mm_.row(f) = frame.target_mm.row(r);
+  }
+  bool any_died = false;
+  for (int f = 0; f < n; ++f)
+    if (alive_[f] && row_of_feature_[f] < 0) {
+      alive_[f] = 0;
+      any_died = true;
+    }
+
+  result->frame = frame_;
+  result->new_cut_points.clear();
+  result->outliers.clear();
+  result->pairs_removed_by_cut = 0;
+  result->pairs_removed_by_death = 0;
+  result->segment_added = false;
+  result->look_ahead_mm.reset();
+  if (any_died) {
+    const size_t before = pairs_.size();
+    pairs_.erase(
+        std::remove_if(pairs_.begin(), pairs_.end(),
+                       [&](const FeaturePair& p) { return !alive_[p.first] || !alive_[p.second]; }),
+        pairs_.end());
+    result->pairs_removed_by_death = static_cast<int>(before - pairs_.size());
+  }
+
+  // mu_lm = |d_l - d_m| * delta_lm / delta^0_lm with d = p^t - p^1 (eq. 7.9-7.11).
+  const int num_pairs = static_cast<int>(pairs_.size());
+  result->pairs.assign(pairs_.begin(), pairs_.end());
+  result->measure.resize(num_pairs);
+  const RowMatX3d& ratio_positions =
+      options_.measure == CutMeasure::kModelRegularised ? model_mm_ : target_mm_;
+  double sum = 0.0;
+  for (int k = 0; k < num_pairs; ++k) {
+    const int l = pairs_[k].first, m = pairs_[k].second;
+    const Eigen::Vector3d dl = model_mm_.row(l) - target_mm_.row(l);
+    const Eigen::Vector3d dm = model_mm_.row(m) - target_mm_.row(m);
+    const double mu1 = (dl - dm).norm();
+    const double delta0 = (initial_mm_.row(l) - initial_mm_.row(m)).norm();
+    const double delta = (ratio_positions.row(l) - ratio_positions.row(m)).norm();
+    // Coincident initial features carry no length information; treat them as unstretched.
+    const double mu2 = delta0 > 0.0 ? delta / delta0 : 1.0;
+    const double mu = mu1 * mu2;
+    result->measure[k] = mu;
+    sum += mu;
+  }
+  const double mean = num_pairs > 0 ? sum / num_pairs : 0.0;
+  result->mean_measure = mean;
+  const double threshold =
+      std::max(options_.outlier_factor * mean, options_.min_outlier_measure_mm);
+  for (int k = 0; k < num_pairs; ++k)
+    if (result->measure[k] > threshold) result->outliers.push_back(k);
+
+  // Cut points: the mean stays that of the frame while further points are inserted, and only the
+  // pairs still present count (removed ones were pruned around earlier points).
+  candidates_ = result->outliers;
+  for (int inserted = 0; inserted < options_.max_cut_points_per_frame; ++inserted) {
+    if (static_cast<int>(candidates_.size()) < options_.min_outliers) break;
+    Eigen::Vector3d current = Eigen::Vector3d::Zero(), initial = Eigen::Vector3d::Zero();
+    double weight = 0.0;
+    for (int k : candidates_) {
+      const int l = result->pairs[k].first, m = result->pairs[k].second;
+      const double w = result->measure[k];
+      current += w * 0.5 * (model_mm_.row(l) + model_mm_.row(m)).transpose();
+      initial += w * 0.5 * (initial_mm_.row(l) + initial_mm_.row(m)).transpose();
+      weight += w;
+    }
+    CutPoint point;
+    point.position_mm = current / weight;
+    point.initial_position_mm = initial / weight;
+    point.frame = frame_;
+    point.num_outliers = static_cast<int>(candidates_.size());
+    const bool front = InsertCutPoint(point);
+    result->new_cut_points.push_back(point);
+    if (polyline_.size() >= 2) {
+      result->segment_added = true;
+      const CutPoint& end = front ? polyline_[0] : polyline_.back();
+      const CutPoint& prev = front ? polyline_[1] : polyline_[polyline_.size() - 2];
+      const Eigen::Vector3d dir = end.position_mm - prev.position_mm;
+      if (dir.norm() > 0.0)
+        result->look_ahead_mm = end.position_mm + options_.cut_point_radius_mm * dir.normalized();
+      if (polyline_.size() == 2) {
+        front_at_border_ = ExtremityAtBorder(true);
+        back_at_border_ = ExtremityAtBorder(false);
+      } else if (front) {
+        front_at_border_ = ExtremityAtBorder(true);
+      } else {
+        back_at_border_ = ExtremityAtBorder(false);
+      }
+    }
+    RemovePairsNear(point.position_mm, &result->pairs_removed_by_cut);
+    // Outliers whose pair has just been removed no longer count.
+    candidates_.erase(
+        std::remove_if(candidates_.begin(), candidates_.end(),
+                       [&](int k) {
+                         const FeaturePair& p = result->pairs[k];
+                         return SquaredDistanceToSegment(model_mm_.row(p.first).transpose(),
+                                                         model_mm_.row(p.second).transpose(),
+                                                         point.position_mm) <
+                                options_.cut_point_radius_mm * options_.cut_point_radius_mm;
+                       }),
+        candidates_.end());
+  }
+
+  result->polyline_mm.clear();
+  for (const CutPoint& p : polyline_) result->polyline_mm.push_back(p.position_mm);
+  result->extended_polyline_mm = ExtendedPolyline(false);
+  ++frame_;
+}
+
+void CutDetector::RemovePairsNear(const Eigen::Vector3d& centre_mm, int* removed) {
+  const double r2 = options_.cut_point_radius_mm * options_.cut_point_radius_mm;
+  const size_t before = pairs_.size();
+  pairs_.erase(std::remove_if(pairs_.begin(), pairs_.end(),
+                              [&](const FeaturePair& p) {
+                                return SquaredDistanceToSegment(model_mm_.row(p.first).transpose(),
+                                                                model_mm_.row(p.second).transpose(),
+                                                                centre_mm) < r2;
+                              }),
+               pairs_.end());
+  *removed += static_cast<int>(before - pairs_.size());
+}
+
+bool CutDetector::InsertCutPoint(const CutPoint& point) {
+  if (polyline_.size() < 2) {
+    polyline_.push_back(point);
+    return false;
+  }
+  const double to_front = (point.position_mm - polyline_.front().position_mm).squaredNorm();
+  const double to_back = (point.position_mm - polyline_.back().position_mm).squaredNorm();
+  if (to_front < to_back) {
+    polyline_.insert(polyline_.begin(), point);
+    return true;
+  }
+  polyline_.push_back(point);
+  return false;
+}
+
+bool CutDetector::ExtremityAtBorder(bool front) const {
+  const size_t count = polyline_.size();
+  ARREG_ASSERT(count >= 2, "");
+  const Eigen::Vector3d end = (front ? polyline_[0] : polyline_[count - 1]).position_mm;
+  const Eigen::Vector3d prev = (front ? polyline_[1] : polyline_[count - 2]).position_mm;
+  const Eigen::Vector3d dir = end - prev;
+  if (dir.norm() == 0.0) return false;
+  const Eigen::Vector3d u = dir.normalized();
+  const double cos_cone = std::cos(options_.boundary_cone_half_angle_deg * kPi / 180.0);
+  const double r = options_.neighbour_radius_mm;
+  for (int f = 0; f < num_features(); ++f) {
+    if (!alive_[f]) continue;
+    const Eigen::Vector3d v = model_mm_.row(f).transpose() - end;
+    const double dist = v.norm();
+    if (dist > 0.0 && dist < r && v.dot(u) >= cos_cone * dist) return false;
+  }
+  return true;
+}
+
+std::vector<Eigen::Vector3d> CutDetector::ExtendedPolyline(bool initial_frame) const {
+  std::vector<Eigen::Vector3d> out;
+  auto pos = [&](size_t i) {
+    return initial_frame ? polyline_[i].initial_position_mm : polyline_[i].position_mm;
+  };
+  const size_t count = polyline_.size();
+  if (count < 2) {
+    if (count == 1) out.push_back(pos(0));
+    return out;
+  }
+  // Extension beyond an extremity: the look-ahead (r_pc) or, at the border, the border
+  // extension, whichever is longer.
+  auto extension = [&](size_t end, size_t prev, bool at_border) -> std::optional<Eigen::Vector3d> {
+    double length = options_.look_ahead ? options_.cut_point_radius_mm : 0.0;
+    if (options_.extend_to_boundary && at_border)
+      length = std::max(length, options_.boundary_extension_mm);
+    const Eigen::Vector3d dir = pos(end) - pos(prev);
+    if (length <= 0.0 || dir.norm() == 0.0) return std::nullopt;
+    return pos(end) + length * dir.normalized();
+  };
+  if (auto e = extension(0, 1, front_at_border_)) out.push_back(*e);
+  for (size_t i = 0; i < count; ++i) out.push_back(pos(i));
+  if (auto e = extension(count - 1, count - 2, back_at_border_)) out.push_back(*e);
+  return out;
+}
+
+}  // namespace arreg::cutting

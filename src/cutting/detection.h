@@ -1,0 +1,141 @@
+// Cut detection from tracked surface features (thesis 7.5): pairs of neighbouring features whose
+// model-versus-image displacements diverge are outliers, and their barycentres grow a cut polyline.
+#pragma once
+
+#include <Eigen/Core>
+#include <optional>
+#include <unordered_map>
+#include <vector>
+
+#include "core/mesh.h"
+
+namespace arreg::cutting {
+
+// Which ratio of pair distances enters mu2 (thesis eq. 7.10).
+enum class CutMeasure {
+  // mu2 = delta^t / delta^0: current model positions. The model smooths jumps of the tracked
+  // targets, so the detection is more stable ([78]; the thesis's choice for noisy tracking).
+  kModelRegularised,
+  // mu2 = delta^1 / delta^0: image targets only; independent of the model ([82]).
+  kImageOnly,
+};
+
+// Thesis defaults are those of the kidney 1 experiment (thesis 7.7 / DESIGN.md section 4).
+struct CutDetectorOptions {
+  // r_F [mm]: two features whose frame-0 distance is below this are neighbours. Default 15.
+  double neighbour_radius_mm = 15.0;
+  // tau [-]: a pair is an outlier when mu > tau * mean(mu) over the current pairs. Default 8.
+  double outlier_factor = 8.0;
+  // n [-]: outlier count at which a cut point is inserted. Default 8.
+  int min_outliers = 8;
+  // r_pc [mm]: pairs whose current segment comes closer than this to a new cut point are removed,
+  // and the look-ahead point lies at this distance beyond the extremity. Default 7.
+  double cut_point_radius_mm = 7.0;
+  // Variant of mu2 (eq. 7.10). Default kModelRegularised.
+  CutMeasure measure = CutMeasure::kModelRegularised;
+  // Absolute floor on mu [mm]: pairs at or below it are never outliers. Not in the thesis; it
+  // only matters when mean(mu) is ~0 (a model that follows noise-free targets exactly), where
+  // rounding noise would otherwise exceed tau * mean. Default 1e-6.
+  double min_outlier_measure_mm = 1e-6;
+  // Look-ahead point (thesis 7.5.3, "Optimizations"): the extended polyline continues r_pc beyond
+  // each extremity along its last segment, so a lagging detection still reaches the border.
+  // Default true.
+  bool look_ahead = true;
+  // Boundary handling of [78, 79]: after an insertion, when no alive feature lies ahead of the
+  // grown extremity (within r_F and within `boundary_cone_half_angle_deg` of the polyline's
+  // direction), the extremity is at the object's border and the extended polyline continues by
+  // `boundary_extension_mm` so that the cut crosses it. Default true.
+  bool extend_to_boundary = true;
+  // [mm] length added beyond an extremity found at the border. Default 15 (= r_F).
+  double boundary_extension_mm = 15.0;
+  // [deg] half-angle of the cone ahead of an extremity searched for features. Default 45.
+  double boundary_cone_half_angle_deg = 45.0;
+  // Cut points inserted per Update at most (the thesis inserts one per time step). Default 1.
+  int max_cut_points_per_frame = 1;
+
+  // Throws arreg::Error naming the offending field.
+  void Check() const;
+};
+
+// A pair (l, m) of C_F as indices into the features given to Initialize (l < m).
+struct FeaturePair {
+  int first = 0;
+  int second = 0;
+};
+
+// One frame of tracked features. Rows correspond to `ids`; a feature given to Initialize and
+// absent here has died and loses its pairs for good.
+struct FrameFeatures {
+  std::vector<int> ids;  // ids of the alive features (any order, each at most once)
+  RowMatX3d target_mm;   // (#ids x 3) p^1_l: targets lifted from the image
+  RowMatX3d model_mm;    // (#ids x 3) p^t_l(P_V): embedded feature points on the current model
+};
+
+struct CutPoint {
+  Eigen::Vector3d position_mm;  // mu-weighted barycentre of the outlier pairs' midpoints (p^t)
+  Eigen::Vector3d initial_position_mm;  // the same weights applied to the frame-0 midpoints (p^0)
+  int frame = 0;                        // Update count (0-based) at insertion
+  int num_outliers = 0;                 // outliers that produced it
+};
+
+struct DetectionResult {
+  int frame = 0;                   // Update count (0-based)
+  std::vector<FeaturePair> pairs;  // C^t evaluated this frame (before this frame's removals)
+  std::vector<double> measure;     // (#pairs) mu_lm = mu1 * mu2 [mm]
+  double mean_measure = 0.0;       // mean of `measure` [mm]
+  std::vector<int> outliers;       // indices into pairs/measure with mu > tau * mean
+  std::vector<CutPoint> new_cut_points;
+  int pairs_removed_by_cut = 0;              // pairs crossing the r_pc sphere of the new cut points
+  int pairs_removed_by_death = 0;            // pairs with a feature that died this frame
+  bool segment_added = false;                // the polyline has >= 2 points and grew this frame
+  std::vector<Eigen::Vector3d> polyline_mm;  // cut points in order (p^t at insertion)
+  std::optional<Eigen::Vector3d> look_ahead_mm;       // beyond the extremity grown this frame
+  std::vector<Eigen::Vector3d> extended_polyline_mm;  // polyline with look-ahead/border extensions
+};
+
+// Stateful detector: C_F is built once, then every Update evaluates mu on the remaining pairs,
+// inserts cut points and prunes pairs. Single-threaded; Update allocates nothing once the result
+// vectors have reached their size.
+class CutDetector {
+ public:
+  explicit CutDetector(const CutDetectorOptions& options = {});
+
+  // initial_positions_mm: (#F x 3) p^0_l on the model at frame 0; ids: (#F) distinct feature ids.
+  // Builds C_F with a uniform grid of cell size r_F. Resets the polyline.
+  void Initialize(const RowMatX3d& initial_positions_mm, const std::vector<int>& ids);
+
+  // Evaluates one frame; throws arreg::Error for unknown or repeated ids or mismatched rows.
+  void Update(const FrameFeatures& frame, DetectionResult* result);
+
+  const CutDetectorOptions& options() const { return options_; }
+  const std::vector<FeaturePair>& pairs() const { return pairs_; }
+  const std::vector<CutPoint>& polyline() const { return polyline_; }
+  // Polyline with the look-ahead and border extensions at both ends; `initial_frame` selects
+  // the frame-0 coordinates (for cutting the rest configuration) instead of p^t.
+  std::vector<Eigen::Vector3d> ExtendedPolyline(bool initial_frame = false) const;
+  int num_features() const { return static_cast<int>(initial_mm_.rows()); }
+  bool alive(int feature) const { return alive_[feature] != 0; }
+
+ private:
+  void RemovePairsNear(const Eigen::Vector3d& centre_mm, int* removed);
+  // Inserts at the nearest extremity; returns true when it went to the front.
+  bool InsertCutPoint(const CutPoint& point);
+  bool ExtremityAtBorder(bool front) const;
+
+  CutDetectorOptions options_;
+  RowMatX3d initial_mm_;  // (#F x 3) p^0
+  std::unordered_map<int, int> index_of_id_;
+  std::vector<char> alive_;
+  std::vector<FeaturePair> pairs_;
+  std::vector<CutPoint> polyline_;  // front() and back() are the extremities
+  bool front_at_border_ = false;
+  bool back_at_border_ = false;
+  int frame_ = 0;
+  // Per-frame scratch, indexed by feature.
+  std::vector<int> row_of_feature_;
+  RowMatX3d model_mm_;   // (#F x 3) p^t of the alive features
+  RowMatX3d target_mm_;  // (#F x 3) p^1
+  std::vector<int> candidates_;
+};
+
+}  // namespace arreg::cutting

@@ -1,0 +1,501 @@
+// Cut detection (thesis 7.5) on synthetic feature fields with known ground truth, and the
+// extrusion of the cut polyline into the separation surface S.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <set>
+
+#include "core/error.h"
+#include "cutting/cut_extrusion.h"
+#include "cutting/detection.h"
+
+namespace arreg::cutting {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// 35 x 20 features, 4.8 mm apart, on the plane z = 0; the seam y = 0 lies between two rows.
+// 700 features and 8,828 pairs at r_F = 15 mm, the size of the thesis's experiments.
+struct FeatureGrid {
+  RowMatX3d p0;
+  std::vector<int> ids;
+};
+
+FeatureGrid MakeGrid(int nx = 35, int ny = 20, double spacing = 4.8) {
+  FeatureGrid g;
+  g.p0.resize(nx * ny, 3);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const int r = j * nx + i;
+      g.p0.row(r) << spacing * (i + 0.5), spacing * (j - ny / 2 + 0.5), 0.0;
+      g.ids.push_back(1000 + 7 * r);  // ids need not be 0..n-1
+    }
+  return g;
+}
+
+FrameFeatures MakeFrame(const FeatureGrid& g, const RowMatX3d& target, const RowMatX3d& model) {
+  FrameFeatures f;
+  f.ids = g.ids;
+  f.target_mm = target;
+  f.model_mm = model;
+  return f;
+}
+
+// A cut opening along an oblique seam line (not aligned with the grid) from the border x = 0,
+// its tip advancing by `speed_mm` per frame (V-shaped opening, as a blade leaves it). The
+// targets p^1 separate across the seam; the model stays connected (its displacement fades to 0
+// at the seam over `stiffness_mm`) except where the detector has already cut it: there it follows
+// the targets. That closes the loop the thesis has between detection and remeshing.
+struct SeamScenario {
+  Eigen::Vector2d start_mm{0.0, -15.0};  // where the seam line meets the border x = 0
+  Eigen::Vector2d direction{1.0, 0.3};   // along the seam (normalised in use)
+  double tip_start_mm = -5.0;            // arc length along the seam
+  double speed_mm = 2.0;
+  double tip_end_mm = 120.0;
+  double max_opening_mm = 10.0;
+  double opening_slope = 0.5;  // opening per mm behind the tip
+  double stiffness_mm = 8.0;
+  double noise_mm = 0.0;
+  unsigned seed = 3;
+
+  Eigen::Vector2d Along() const { return direction.normalized(); }
+  Eigen::Vector2d Normal() const { return Eigen::Vector2d(-Along().y(), Along().x()); }
+  // (arc length along the seam, signed distance from it) of a point.
+  Eigen::Vector2d Coordinates(const Eigen::Vector3d& p) const {
+    const Eigen::Vector2d r = p.head<2>() - start_mm;
+    return Eigen::Vector2d(r.dot(Along()), r.dot(Normal()));
+  }
+};
+
+struct SeamRun {
+  std::vector<CutPoint> points;
+  std::vector<double> tip_at_point;
+  std::vector<Eigen::Vector3d> extended_initial;
+  int frames = 0;
+};
+
+SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOptions& options) {
+  CutDetector detector(options);
+  detector.Initialize(g.p0, g.ids);
+  std::mt19937 rng(s.seed);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  SeamRun run;
+  DetectionResult result;
+  const int n = static_cast<int>(g.p0.rows());
+  const Eigen::Vector2d normal = s.Normal();
+  for (double tip = s.tip_start_mm; tip <= s.tip_end_mm + 1e-9; tip += s.speed_mm) {
+    double cut_extent = -std::numeric_limits<double>::infinity();
+    for (const Eigen::Vector3d& p : detector.ExtendedPolyline(true))
+      cut_extent = std::max(cut_extent, s.Coordinates(p).x());
+    RowMatX3d target = g.p0, model = g.p0;
+    for (int r = 0; r < n; ++r) {
+      const Eigen::Vector2d c = s.Coordinates(g.p0.row(r).transpose());
+      const double open =
+          c.x() < tip ? std::min(s.max_opening_mm, s.opening_slope * (tip - c.x())) : 0.0;
+      const double side = c.y() > 0 ? 1.0 : -1.0;
+      target.row(r).head<2>() += side * 0.5 * open * normal.transpose();
+      const double follow =
+          c.x() <= cut_extent ? 1.0 : 1.0 - std::exp(-std::abs(c.y()) / s.stiffness_mm);
+      model.row(r).head<2>() += side * 0.5 * open * follow * normal.transpose();
+      if (s.noise_mm > 0.0) {
+        target(r, 0) += s.noise_mm * noise(rng);
+        target(r, 1) += s.noise_mm * noise(rng);
+      }
+    }
+    detector.Update(MakeFrame(g, target, model), &result);
+    for (const CutPoint& p : result.new_cut_points) {
+      run.points.push_back(p);
+      run.tip_at_point.push_back(tip);
+    }
+    ++run.frames;
+  }
+  run.extended_initial = detector.ExtendedPolyline(true);
+  return run;
+}
+
+TEST(CutDetectorOptions, CheckNamesTheField) {
+  CutDetectorOptions o;
+  EXPECT_NO_THROW(o.Check());
+  o.outlier_factor = 0.0;
+  try {
+    o.Check();
+    FAIL() << "expected arreg::Error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("outlier_factor"), std::string::npos) << e.what();
+  }
+  o = {};
+  o.min_outliers = 0;
+  EXPECT_THROW(CutDetector{o}, Error);
+}
+
+TEST(CutDetector, NeighbourGraphEqualsBruteForce) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-40.0, 40.0);
+  RowMatX3d p(400, 3);
+  std::vector<int> ids;
+  for (int i = 0; i < 400; ++i) {
+    p.row(i) << u(rng), u(rng), 0.25 * u(rng);
+    ids.push_back(i);
+  }
+  CutDetector detector;
+  detector.Initialize(p, ids);
+  std::set<std::pair<int, int>> expected, got;
+  for (int i = 0; i < 400; ++i)
+    for (int j = i + 1; j < 400; ++j)
+      if ((p.row(i) - p.row(j)).norm() < 15.0) expected.insert({i, j});
+  for (const FeaturePair& q : detector.pairs()) got.insert({q.first, q.second});
+  EXPECT_EQ(got.size(), detector.pairs().size()) << "duplicate pairs";
+  EXPECT_EQ(got, expected);
+}
+
+TEST(CutDetector, GridHasThesisSize) {
+  const FeatureGrid g = MakeGrid();
+  CutDetector detector;
+  detector.Initialize(g.p0, g.ids);
+  EXPECT_EQ(detector.num_features(), 700);
+  EXPECT_GT(detector.pairs().size(), 8000u);
+  EXPECT_LT(detector.pairs().size(), 10000u);
+}
+
+TEST(CutDetector, DeadFeaturesLoseTheirPairs) {
+  const FeatureGrid g = MakeGrid(6, 6);
+  CutDetector detector;
+  detector.Initialize(g.p0, g.ids);
+  const size_t before = detector.pairs().size();
+  // Feature 0 (a corner) and feature 14 die.
+  FrameFeatures f;
+  std::vector<int> keep;
+  for (int r = 0; r < 36; ++r)
+    if (r != 0 && r != 14) keep.push_back(r);
+  f.target_mm.resize(keep.size(), 3);
+  f.model_mm.resize(keep.size(), 3);
+  for (size_t k = 0; k < keep.size(); ++k) {
+    f.ids.push_back(g.ids[keep[k]]);
+    f.target_mm.row(k) = g.p0.row(keep[k]);
+    f.model_mm.row(k) = g.p0.row(keep[k]);
+  }
+  int expected_removed = 0;
+  for (const FeaturePair& q : detector.pairs())
+    if (q.first == 0 || q.second == 0 || q.first == 14 || q.second == 14) ++expected_removed;
+  DetectionResult result;
+  detector.Update(f, &result);
+  EXPECT_EQ(result.pairs_removed_by_death, expected_removed);
+  EXPECT_EQ(detector.pairs().size(), before - expected_removed);
+  for (const FeaturePair& q : detector.pairs()) {
+    EXPECT_NE(q.first, 0);
+    EXPECT_NE(q.second, 14);
+    EXPECT_NE(q.first, 14);
+  }
+  EXPECT_FALSE(detector.alive(0));
+  EXPECT_TRUE(detector.alive(1));
+  // A lost feature cannot come back, and unknown ids are bad input.
+  FrameFeatures back = MakeFrame(g, g.p0, g.p0);
+  EXPECT_THROW(detector.Update(back, &result), Error);
+  f.ids[0] = -5;
+  EXPECT_THROW(detector.Update(f, &result), Error);
+}
+
+TEST(CutDetector, MeasureMatchesDefinition) {
+  // Two features 10 mm apart: d_l - d_m and the distance ratios are known in closed form.
+  RowMatX3d p0(2, 3);
+  p0 << 0, 0, 0, 10, 0, 0;
+  for (CutMeasure measure : {CutMeasure::kModelRegularised, CutMeasure::kImageOnly}) {
+    CutDetectorOptions o;
+    o.measure = measure;
+    CutDetector detector(o);
+    detector.Initialize(p0, {4, 9});
+    FrameFeatures f;
+    f.ids = {9, 4};  // any order
+    f.target_mm.resize(2, 3);
+    f.model_mm.resize(2, 3);
+    f.target_mm << 16, 0, 0, -2, 0, 0;  // delta^1 = 18
+    f.model_mm << 12, 0, 0, 0, 0, 0;    // delta^t = 12; d_9 = (-4,0,0), d_4 = (2,0,0)
+    DetectionResult r;
+    detector.Update(f, &r);
+    ASSERT_EQ(r.measure.size(), 1u);
+    const double mu2 = measure == CutMeasure::kModelRegularised ? 1.2 : 1.8;
+    EXPECT_NEAR(r.measure[0], 6.0 * mu2, 1e-12);
+    EXPECT_NEAR(r.mean_measure, 6.0 * mu2, 1e-12);
+    EXPECT_TRUE(r.outliers.empty());  // a single pair equals its mean
+  }
+}
+
+TEST(CutDetector, SeamPulledApartGivesCutPointsAlongTheSeam) {
+  const FeatureGrid g = MakeGrid();
+  const CutDetectorOptions options;  // thesis kidney 1 values
+  const SeamScenario scenario;
+  const SeamRun run = RunSeam(g, scenario, options);
+  ASSERT_GE(run.points.size(), 8u) << "the 125 mm cut should give a polyline";
+  for (size_t i = 0; i < run.points.size(); ++i) {
+    const Eigen::Vector2d c = scenario.Coordinates(run.points[i].initial_position_mm);
+    EXPECT_LT(std::abs(c.y()), options.cut_point_radius_mm) << "cut point " << i;
+    EXPECT_NEAR(run.points[i].initial_position_mm.z(), 0.0, 1e-9);
+    // Never ahead of the real cut's tip (the detection may lag, not lead).
+    EXPECT_LT(c.x(), run.tip_at_point[i] + options.cut_point_radius_mm) << "cut point " << i;
+    EXPECT_GT(c.x(), -options.cut_point_radius_mm);
+    // In the current frame too (the model is separated there by up to 10 mm).
+    EXPECT_LT(std::abs(scenario.Coordinates(run.points[i].position_mm).y()),
+              options.cut_point_radius_mm);
+  }
+  // The polyline grows at the tip: its points are ordered along the seam...
+  for (size_t i = 1; i < run.points.size(); ++i)
+    EXPECT_GT(scenario.Coordinates(run.points[i].initial_position_mm).x(),
+              scenario.Coordinates(run.points[i - 1].initial_position_mm).x());
+  // ...follows the cut to within r_pc of the final tip...
+  EXPECT_GT(scenario.Coordinates(run.extended_initial.back()).x(),
+            scenario.tip_end_mm - options.cut_point_radius_mm);
+  // ...and, starting at the border, is extended across it (boundary handling).
+  EXPECT_LT(run.extended_initial.front().x(), 0.0);
+}
+
+TEST(CutDetector, SeamWithOnePixelNoiseStillOnTheSeam) {
+  const FeatureGrid g = MakeGrid();
+  SeamScenario scenario;
+  scenario.noise_mm = 0.25;  // 1 px at 200 mm with f = 800 px
+  const CutDetectorOptions options;
+  const SeamRun run = RunSeam(g, scenario, options);
+  ASSERT_GE(run.points.size(), 5u);
+  for (const CutPoint& p : run.points)
+    EXPECT_LT(std::abs(SeamScenario{}.Coordinates(p.initial_position_mm).y()),
+              options.cut_point_radius_mm);
+}
+
+TEST(CutDetector, ImageOnlyMeasureAlsoFindsTheSeam) {
+  const FeatureGrid g = MakeGrid();
+  CutDetectorOptions options;
+  options.measure = CutMeasure::kImageOnly;
+  const SeamRun run = RunSeam(g, SeamScenario{}, options);
+  ASSERT_GE(run.points.size(), 5u);
+  for (const CutPoint& p : run.points)
+    EXPECT_LT(std::abs(SeamScenario{}.Coordinates(p.initial_position_mm).y()),
+              options.cut_point_radius_mm);
+}
+
+TEST(CutDetector, PairsCrossingTheCutPointSphereAreRemoved) {
+  const FeatureGrid g = MakeGrid();
+  CutDetectorOptions options;
+  options.max_cut_points_per_frame = 3;
+  CutDetector detector(options);
+  detector.Initialize(g.p0, g.ids);
+  // A wide gap opened at once over x < 60: several cut points in one frame.
+  RowMatX3d target = g.p0;
+  for (int r = 0; r < target.rows(); ++r)
+    if (g.p0(r, 0) < 60.0) target(r, 1) += g.p0(r, 1) > 0 ? 4.0 : -4.0;
+  DetectionResult result;
+  detector.Update(MakeFrame(g, target, g.p0), &result);
+  ASSERT_FALSE(result.new_cut_points.empty());
+  EXPECT_GT(result.pairs_removed_by_cut, 0);
+  for (const CutPoint& c : result.new_cut_points)
+    for (const FeaturePair& q : detector.pairs()) {
+      const Eigen::Vector3d a = g.p0.row(q.first), b = g.p0.row(q.second);
+      const double s = std::clamp((c.position_mm - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+      EXPECT_GE((a + s * (b - a) - c.position_mm).norm(), options.cut_point_radius_mm);
+    }
+  EXPECT_EQ(static_cast<int>(detector.pairs().size()),
+            static_cast<int>(result.pairs.size()) - result.pairs_removed_by_cut);
+}
+
+// Uniform uniaxial and biaxial stretch up to 186 % (thesis 7.7.1), the model lagging behind.
+TEST(CutDetector, UniformStretchTo186PercentGivesNoCut) {
+  const FeatureGrid g = MakeGrid();
+  for (CutMeasure measure : {CutMeasure::kModelRegularised, CutMeasure::kImageOnly})
+    for (bool biaxial : {false, true}) {
+      CutDetectorOptions o;
+      o.measure = measure;
+      CutDetector detector(o);
+      detector.Initialize(g.p0, g.ids);
+      DetectionResult r;
+      int cut_points = 0;
+      double worst_ratio = 0.0;
+      const Eigen::RowVector3d centre(87.5, 0.0, 0.0);
+      for (int k = 1; k <= 40; ++k) {
+        const double stretch = 1.0 + 0.86 * k / 40.0;
+        const double lagged = 1.0 + 0.86 * (k - 1) / 40.0;
+        RowMatX3d target = g.p0, model = g.p0;
+        for (int i = 0; i < g.p0.rows(); ++i) {
+          const Eigen::RowVector3d rel = g.p0.row(i) - centre;
+          target(i, 0) = centre(0) + stretch * rel(0);
+          model(i, 0) = centre(0) + lagged * rel(0);
+          if (biaxial) {
+            target(i, 1) = centre(1) + stretch * rel(1);
+            model(i, 1) = centre(1) + lagged * rel(1);
+          }
+        }
+        detector.Update(MakeFrame(g, target, model), &r);
+        cut_points += static_cast<int>(r.new_cut_points.size());
+        worst_ratio = std::max(
+            worst_ratio, *std::max_element(r.measure.begin(), r.measure.end()) / r.mean_measure);
+      }
+      EXPECT_EQ(cut_points, 0) << "biaxial " << biaxial;
+      EXPECT_LT(worst_ratio, o.outlier_factor);
+    }
+}
+
+TEST(CutDetector, RigidMotionGivesNoCut) {
+  const FeatureGrid g = MakeGrid();
+  CutDetector detector;
+  detector.Initialize(g.p0, g.ids);
+  DetectionResult r;
+  int cut_points = 0;
+  auto pose = [](int k) {
+    const double a = 0.5 * kPi / 180.0 * k;  // 0.5 deg per frame about a tilted axis
+    Eigen::Matrix3d R = Eigen::AngleAxisd(a, Eigen::Vector3d(0.2, 0.3, 1.0).normalized()).matrix();
+    Eigen::Vector3d t(0.8 * k, -0.5 * k, 0.2 * k);
+    return std::make_pair(R, t);
+  };
+  for (int k = 1; k <= 60; ++k) {
+    const auto [R, t] = pose(k);
+    const auto [R_lag, t_lag] = pose(k - 1);  // the model is one frame behind
+    RowMatX3d target(g.p0.rows(), 3), model(g.p0.rows(), 3);
+    for (int i = 0; i < g.p0.rows(); ++i) {
+      target.row(i) = (R * g.p0.row(i).transpose() + t).transpose();
+      model.row(i) = (R_lag * g.p0.row(i).transpose() + t_lag).transpose();
+    }
+    detector.Update(MakeFrame(g, target, model), &r);
+    cut_points += static_cast<int>(r.new_cut_points.size());
+  }
+  EXPECT_EQ(cut_points, 0);
+  EXPECT_TRUE(detector.polyline().empty());
+}
+
+TEST(CutDetector, OnePixelNoiseGivesNoCut) {
+  const FeatureGrid g = MakeGrid();
+  for (CutMeasure measure : {CutMeasure::kModelRegularised, CutMeasure::kImageOnly}) {
+    CutDetectorOptions o;
+    o.measure = measure;
+    CutDetector detector(o);
+    detector.Initialize(g.p0, g.ids);
+    std::mt19937 rng(5);
+    std::normal_distribution<double> noise(0.0, 0.25);  // 1 px at 200 mm with f = 800 px
+    DetectionResult r;
+    int cut_points = 0;
+    for (int k = 0; k < 100; ++k) {
+      RowMatX3d target = g.p0, model = g.p0;
+      for (int i = 0; i < g.p0.rows(); ++i) {
+        target(i, 0) += noise(rng);
+        target(i, 1) += noise(rng);
+        // The model smooths the noise but not entirely.
+        model(i, 0) += 0.3 * noise(rng);
+        model(i, 1) += 0.3 * noise(rng);
+      }
+      detector.Update(MakeFrame(g, target, model), &r);
+      cut_points += static_cast<int>(r.new_cut_points.size());
+    }
+    EXPECT_EQ(cut_points, 0);
+  }
+}
+
+// --- Cut surface -------------------------------------------------------------------------
+
+TEST(CutExtrusion, ClosestPointOnTriangleMatchesDenseSampling) {
+  std::mt19937 rng(2);
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  for (int trial = 0; trial < 50; ++trial) {
+    const Eigen::Vector3d a(u(rng), u(rng), u(rng)), b(u(rng), u(rng), u(rng)),
+        c(u(rng), u(rng), u(rng)), p(2 * u(rng), 2 * u(rng), 2 * u(rng));
+    const Eigen::Vector3d q = ClosestPointOnTriangle(p, a, b, c);
+    // q lies in the triangle: non-negative barycentric coordinates, in the plane.
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    EXPECT_NEAR(n.normalized().dot(q - a), 0.0, 1e-9);
+    const double area = n.norm();
+    const double wa = (b - q).cross(c - q).norm() / area, wb = (c - q).cross(a - q).norm() / area,
+                 wc = (a - q).cross(b - q).norm() / area;
+    EXPECT_NEAR(wa + wb + wc, 1.0, 1e-9);
+    double best = std::numeric_limits<double>::infinity();
+    const int m = 200;
+    for (int i = 0; i <= m; ++i)
+      for (int j = 0; i + j <= m; ++j) {
+        const Eigen::Vector3d s = a + (b - a) * (double(i) / m) + (c - a) * (double(j) / m);
+        best = std::min(best, (s - p).norm());
+      }
+    EXPECT_LE((q - p).norm(), best + 1e-12);
+    EXPECT_GT((q - p).norm(), best - 0.03);  // sampling step ~ 4 / 200
+  }
+}
+
+TEST(CutExtrusion, ExtrusionContainsPolylineAndCameraRays) {
+  const std::vector<Eigen::Vector3d> polyline = {
+      {-20, 5, 150}, {-5, 2, 152}, {10, -1, 149}, {10, -1, 149}, {30, 3, 155}};
+  const Eigen::Vector3d camera(1, -2, 0);
+  CutExtrusionOptions o;
+  o.extent_towards_camera_mm = 40;
+  o.extent_away_from_camera_mm = 60;
+  const SurfaceMesh s = ExtrudeCutPolyline(polyline, camera, o);
+  EXPECT_EQ(s.num_vertices(), 10);
+  EXPECT_EQ(s.num_faces(), 6);  // the repeated point adds no quad
+  for (size_t i = 0; i < polyline.size(); ++i) {
+    EXPECT_LT(DistanceToSurface(s, polyline[i]), 1e-9) << i;
+    const Eigen::Vector3d u = (polyline[i] - camera).normalized();
+    for (double t = -40; t <= 60; t += 5)
+      EXPECT_LT(DistanceToSurface(s, polyline[i] + t * u), 1e-9) << i << " " << t;
+    // Points beyond the extents are off the strip.
+    EXPECT_GT(DistanceToSurface(s, polyline[i] - 45 * u), 4.0);
+  }
+  // Every strip vertex lies on a camera ray through a polyline point: it projects onto it.
+  for (int v = 0; v < s.num_vertices(); ++v) {
+    const Eigen::Vector3d dir = (s.vertices.row(v).transpose() - camera).normalized();
+    const Eigen::Vector3d ray = (polyline[v / 2] - camera).normalized();
+    EXPECT_NEAR(dir.dot(ray), 1.0, 1e-12);
+  }
+  EXPECT_THROW(ExtrudeCutPolyline({polyline[0]}, camera, o), Error);
+  EXPECT_THROW(ExtrudeCutPolyline({polyline[0], polyline[0]}, camera, o), Error);
+}
+
+TEST(CutExtrusion, FixedDirectionExtrusion) {
+  CutExtrusionOptions o;
+  o.fixed_direction = Eigen::Vector3d(0, 0, 2);
+  o.extent_towards_camera_mm = 10;
+  o.extent_away_from_camera_mm = 10;
+  const SurfaceMesh s = ExtrudeCutPolyline({{0, 0, 0}, {10, 0, 0}}, Eigen::Vector3d::Zero(), o);
+  // The strip is the rectangle [0,10] x {0} x [-10,10].
+  EXPECT_NEAR(DistanceToSurface(s, {5, 3, 0}), 3.0, 1e-12);
+  EXPECT_NEAR(DistanceToSurface(s, {5, 0, 12}), 2.0, 1e-12);
+  EXPECT_NEAR(DistanceToSurface(s, {-4, 0, 9}), 4.0, 1e-12);
+}
+
+TEST(CutExtrusion, ExtentsCoverTheObject) {
+  const std::vector<Eigen::Vector3d> polyline = {{0, 0, 100}, {20, 0, 105}};
+  RowMatX3d object(3, 3);
+  object << 0, 0, 80, 5, 5, 140, -5, 0, 120;
+  const Eigen::Vector3d camera(0, 0, 0);
+  const CutExtrusionOptions o = CutExtrusionCovering(polyline, camera, object, 2.0);
+  for (const Eigen::Vector3d& p : polyline) {
+    const double d = p.norm();
+    EXPECT_GE(o.extent_towards_camera_mm, d - 80.0 + 2.0 - 1e-9);
+    EXPECT_GE(o.extent_away_from_camera_mm, object.row(1).norm() - d + 2.0 - 1e-9);
+  }
+}
+
+TEST(CutExtrusion, MarginQueryEqualsBruteForce) {
+  const std::vector<Eigen::Vector3d> polyline = {
+      {0, 0, 100}, {10, 3, 101}, {20, 2, 99}, {30, 6, 103}};
+  const SurfaceMesh s = ExtrudeCutPolyline(polyline, Eigen::Vector3d(5, 0, 0), {});
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> x(-10, 40), y(-10, 15), z(50, 160);
+  RowMatX3d points(3000, 3);
+  for (int i = 0; i < points.rows(); ++i) points.row(i) << x(rng), y(rng), z(rng);
+  for (double margin : {0.5, 2.0, 5.0}) {
+    std::vector<int> expected;
+    for (int i = 0; i < points.rows(); ++i) {
+      double best = std::numeric_limits<double>::infinity();
+      for (int f = 0; f < s.num_faces(); ++f)
+        best = std::min(best, (ClosestPointOnTriangle(points.row(i).transpose(),
+                                                      s.vertices.row(s.faces(f, 0)).transpose(),
+                                                      s.vertices.row(s.faces(f, 1)).transpose(),
+                                                      s.vertices.row(s.faces(f, 2)).transpose()) -
+                               points.row(i).transpose())
+                                  .norm());
+      if (best < margin) expected.push_back(i);
+    }
+    EXPECT_EQ(PointsWithinMargin(s, points, margin), expected) << margin;
+    EXPECT_FALSE(expected.empty());
+  }
+}
+
+}  // namespace
+}  // namespace arreg::cutting
