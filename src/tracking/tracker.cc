@@ -1,0 +1,416 @@
+#include "tracking/tracker.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <ostream>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
+
+#include "core/error.h"
+#include "core/file_util.h"
+
+namespace arreg {
+
+const char* TrackStatusName(TrackStatus status) {
+  switch (status) {
+    case TrackStatus::kTracked:
+      return "tracked";
+    case TrackStatus::kLostBorder:
+      return "lost-border";
+    case TrackStatus::kLostRoi:
+      return "lost-roi";
+    case TrackStatus::kLostFlow:
+      return "lost-flow";
+    case TrackStatus::kLostForwardBackward:
+      return "lost-fb";
+    case TrackStatus::kOutlierSpatioTemporal:
+      return "outlier-spatiotemporal";
+    case TrackStatus::kSpecular:
+      return "specular";
+  }
+  return "unknown";
+}
+
+void LucasKanadeOptions::Check() const {
+  ARREG_CHECK_INPUT(window_px >= 5 && window_px % 2 == 1, "", "LucasKanadeOptions.window_px",
+                    "must be odd and >= 5, got ", window_px);
+  ARREG_CHECK_INPUT(pyramid_levels >= 0 && pyramid_levels <= 8, "",
+                    "LucasKanadeOptions.pyramid_levels", "must be in 0..8, got ", pyramid_levels);
+  ARREG_CHECK_INPUT(max_iterations >= 1, "", "LucasKanadeOptions.max_iterations",
+                    "must be >= 1, got ", max_iterations);
+  ARREG_CHECK_INPUT(epsilon_px > 0, "", "LucasKanadeOptions.epsilon_px", "must be > 0, got ",
+                    epsilon_px);
+  ARREG_CHECK_INPUT(min_eigen_threshold >= 0, "", "LucasKanadeOptions.min_eigen_threshold",
+                    "must be >= 0, got ", min_eigen_threshold);
+}
+
+void OutlierFilterOptions::Check() const {
+  ARREG_CHECK_INPUT(neighbours >= 0, "", "OutlierFilterOptions.neighbours", "must be >= 0, got ",
+                    neighbours);
+  ARREG_CHECK_INPUT(ratio >= 1, "", "OutlierFilterOptions.ratio", "must be >= 1, got ", ratio);
+  ARREG_CHECK_INPUT(slack_px >= 0, "", "OutlierFilterOptions.slack_px", "must be >= 0, got ",
+                    slack_px);
+}
+
+void SpecularOptions::Check() const {
+  ARREG_CHECK_INPUT(min_value >= 0 && min_value <= 255, "", "SpecularOptions.min_value",
+                    "must be in 0..255, got ", min_value);
+  ARREG_CHECK_INPUT(max_saturation >= 0 && max_saturation <= 255, "",
+                    "SpecularOptions.max_saturation", "must be in 0..255, got ", max_saturation);
+  ARREG_CHECK_INPUT(radius_px >= 0 && radius_px <= 32, "", "SpecularOptions.radius_px",
+                    "must be in 0..32, got ", radius_px);
+}
+
+void FeatureTrackerOptions::Check() const {
+  surf.Check();
+  lk.Check();
+  outliers.Check();
+  specular.Check();
+  ARREG_CHECK_INPUT(max_features >= 1, "", "FeatureTrackerOptions.max_features",
+                    "must be >= 1, got ", max_features);
+  ARREG_CHECK_INPUT(min_distance_px >= 0, "", "FeatureTrackerOptions.min_distance_px",
+                    "must be >= 0, got ", min_distance_px);
+  ARREG_CHECK_INPUT(border_px >= 0, "", "FeatureTrackerOptions.border_px", "must be >= 0, got ",
+                    border_px);
+  ARREG_CHECK_INPUT(redetect_every_frames >= 0, "", "FeatureTrackerOptions.redetect_every_frames",
+                    "must be >= 0, got ", redetect_every_frames);
+}
+
+// ---------------------------------------------------------------------------
+// TrackStore
+
+int TrackStore::Add(const SurfKeypoint& keypoint, const cv::Mat& descriptor_row) {
+  ARREG_ASSERT(descriptor_row.rows == 1 && descriptor_row.cols == kSurfDescriptorSize &&
+                   descriptor_row.type() == CV_32F,
+               "");
+  const int id = num_features();
+  histories_.emplace_back();
+  keypoints_.push_back(keypoint);
+  descriptors_.push_back(descriptor_row);
+  return id;
+}
+
+void TrackStore::Record(int id, const TrackObservation& observation) {
+  ARREG_ASSERT(id >= 0 && id < num_features(), "feature id ", id);
+  histories_[id].push_back(observation);
+}
+
+const std::vector<TrackObservation>& TrackStore::history(int id) const {
+  ARREG_ASSERT(id >= 0 && id < num_features(), "feature id ", id);
+  return histories_[id];
+}
+
+const SurfKeypoint& TrackStore::keypoint(int id) const {
+  ARREG_ASSERT(id >= 0 && id < num_features(), "feature id ", id);
+  return keypoints_[id];
+}
+
+cv::Mat TrackStore::descriptor(int id) const {
+  ARREG_ASSERT(id >= 0 && id < num_features(), "feature id ", id);
+  return descriptors_.row(id);
+}
+
+void TrackStore::WriteCsv(const std::string& path) const {
+  WriteFileAtomic(path, [this](std::ostream& out) {
+    out << "id,frame,x_px,y_px,status\n";
+    for (int id = 0; id < num_features(); ++id)
+      for (const TrackObservation& o : histories_[id])
+        out << id << ',' << o.frame << ',' << o.position_px.x << ',' << o.position_px.y << ','
+            << TrackStatusName(o.status) << '\n';
+  });
+}
+
+// ---------------------------------------------------------------------------
+// Masks
+
+cv::Mat SpecularMask(const cv::Mat& image, const SpecularOptions& options) {
+  ARREG_CHECK_INPUT(image.type() == CV_8UC1 || image.type() == CV_8UC3, "", "SpecularMask image",
+                    "expected CV_8UC1 or CV_8UC3");
+  cv::Mat mask(image.size(), CV_8UC1, cv::Scalar(0));
+  for (int r = 0; r < image.rows; ++r) {
+    uint8_t* out = mask.ptr<uint8_t>(r);
+    if (image.channels() == 1) {
+      const uint8_t* in = image.ptr<uint8_t>(r);
+      for (int c = 0; c < image.cols; ++c) out[c] = in[c] >= options.min_value ? 255 : 0;
+    } else {
+      const cv::Vec3b* in = image.ptr<cv::Vec3b>(r);
+      for (int c = 0; c < image.cols; ++c) {
+        const int v = std::max({in[c][0], in[c][1], in[c][2]});
+        const int m = std::min({in[c][0], in[c][1], in[c][2]});
+        out[c] = v >= options.min_value && 255 * (v - m) <= options.max_saturation * v ? 255 : 0;
+      }
+    }
+  }
+  return mask;
+}
+
+cv::Mat ReadMask(const std::string& path, int width, int height) {
+  const cv::Mat image = cv::imread(path, cv::IMREAD_GRAYSCALE);
+  ARREG_CHECK_INPUT(!image.empty(), path, "", "cannot read the mask image");
+  ARREG_CHECK_INPUT(image.cols == width && image.rows == height, path, "", "mask is ", image.cols,
+                    "x", image.rows, " but the video is ", width, "x", height);
+  cv::Mat mask;
+  cv::threshold(image, mask, 0, 255, cv::THRESH_BINARY);
+  return mask;
+}
+
+std::vector<bool> SpatioTemporalOutliers(const std::vector<cv::Point2f>& positions_px,
+                                         const std::vector<cv::Point2f>& displacements_px,
+                                         const OutlierFilterOptions& options) {
+  ARREG_ASSERT(positions_px.size() == displacements_px.size(), "");
+  const int n = static_cast<int>(positions_px.size());
+  std::vector<bool> outlier(n, false);
+  if (n < 2) return outlier;
+  std::vector<double> magnitude(n);
+  double total = 0;
+  for (int i = 0; i < n; ++i) {
+    magnitude[i] = std::hypot(displacements_px[i].x, displacements_px[i].y);
+    total += magnitude[i];
+  }
+  const int k = std::min(options.neighbours, n - 1);
+  std::vector<std::pair<float, int>> distances(n);
+  for (int i = 0; i < n; ++i) {
+    double reference;
+    if (k == 0) {
+      reference = (total - magnitude[i]) / (n - 1);
+    } else {
+      const cv::Point2f p = positions_px[i];
+      for (int j = 0; j < n; ++j) {
+        const cv::Point2f d = positions_px[j] - p;
+        distances[j] = {j == i ? std::numeric_limits<float>::max() : d.dot(d), j};
+      }
+      std::nth_element(distances.begin(), distances.begin() + (k - 1), distances.end());
+      double sum = 0;
+      for (int j = 0; j < k; ++j) sum += magnitude[distances[j].second];
+      reference = sum / k;
+    }
+    outlier[i] = magnitude[i] > options.ratio * reference + options.slack_px;
+  }
+  return outlier;
+}
+
+// ---------------------------------------------------------------------------
+// FeatureTracker
+
+namespace {
+SurfOptions DetectorOptions(SurfOptions surf) {
+  surf.max_keypoints = 0;  // the tracker chooses among all points (distance, highlights)
+  return surf;
+}
+}  // namespace
+
+FeatureTracker::FeatureTracker(const FeatureTrackerOptions& options)
+    : options_(options), surf_((options.Check(), DetectorOptions(options.surf))) {}
+
+int FeatureTracker::num_active() const {
+  return static_cast<int>(std::count_if(current_.begin(), current_.end(), [](const auto& f) {
+    return f.status == TrackStatus::kTracked;
+  }));
+}
+
+void FeatureTracker::PrepareFrame(const cv::Mat& image, const cv::Mat& roi_mask) {
+  const std::string where = "frame " + std::to_string(frame_);
+  ARREG_CHECK_INPUT(image.type() == CV_8UC1 || image.type() == CV_8UC3, "", where,
+                    "tracker input must be an 8-bit grey or BGR image");
+  if (frame_ > 0)
+    ARREG_CHECK_INPUT(image.size() == gray_.size(), "", where, "image size changed from ",
+                      gray_.cols, "x", gray_.rows, " to ", image.cols, "x", image.rows);
+  ARREG_CHECK_INPUT(
+      roi_mask.empty() || (roi_mask.type() == CV_8UC1 && roi_mask.size() == image.size()), "",
+      where, "ROI mask must be empty or CV_8UC1 of the image size");
+  if (image.channels() == 3) {
+    bgr_ = image;
+    cv::cvtColor(image, gray_, cv::COLOR_BGR2GRAY);
+  } else {
+    bgr_.release();
+    gray_ = image;
+  }
+  // The previous frame's pyramid is kept, not rebuilt; the buffers of the one
+  // before are reused for the new one.
+  std::swap(previous_pyramid_, pyramid_);
+  const int win = options_.lk.window_px;
+  cv::buildOpticalFlowPyramid(gray_, pyramid_, cv::Size(win, win), options_.lk.pyramid_levels,
+                              true);
+}
+
+bool FeatureTracker::IsSpecular(cv::Point2f p) const {
+  const SpecularOptions& o = options_.specular;
+  if (!o.enabled) return false;
+  const int cx = static_cast<int>(std::lround(p.x)), cy = static_cast<int>(std::lround(p.y));
+  const int r0 = std::max(0, cy - o.radius_px), r1 = std::min(gray_.rows - 1, cy + o.radius_px);
+  const int c0 = std::max(0, cx - o.radius_px), c1 = std::min(gray_.cols - 1, cx + o.radius_px);
+  for (int r = r0; r <= r1; ++r)
+    for (int c = c0; c <= c1; ++c) {
+      if (bgr_.empty()) {
+        if (gray_.at<uint8_t>(r, c) >= o.min_value) return true;
+      } else {
+        const cv::Vec3b px = bgr_.at<cv::Vec3b>(r, c);
+        const int v = std::max({px[0], px[1], px[2]});
+        const int m = std::min({px[0], px[1], px[2]});
+        if (v >= o.min_value && 255 * (v - m) <= o.max_saturation * v) return true;
+      }
+    }
+  return false;
+}
+
+bool FeatureTracker::InsideRoi(cv::Point2f p, const cv::Mat& roi_mask) const {
+  if (roi_mask.empty()) return true;
+  const int x = static_cast<int>(std::lround(p.x)), y = static_cast<int>(std::lround(p.y));
+  if (x < 0 || y < 0 || x >= roi_mask.cols || y >= roi_mask.rows) return false;
+  return roi_mask.at<uint8_t>(y, x) != 0;
+}
+
+int FeatureTracker::Detect(const cv::Mat& roi_mask) {
+  const int room = options_.max_features - num_active();
+  if (room <= 0) return 0;
+  surf_.SetImage(gray_);
+  std::vector<SurfKeypoint> candidates;
+  surf_.Detect(roi_mask, &candidates);
+
+  // Greedy by strength: keep points off highlights, inside the border and at
+  // least min_distance_px from every kept or followed feature (grid lookup).
+  const float min_distance = static_cast<float>(options_.min_distance_px);
+  const float cell = std::max(1.f, min_distance);
+  const int grid_cols = static_cast<int>(gray_.cols / cell) + 1;
+  const int grid_rows = static_cast<int>(gray_.rows / cell) + 1;
+  std::vector<std::vector<cv::Point2f>> grid(static_cast<size_t>(grid_cols) * grid_rows);
+  auto cell_of = [&](cv::Point2f p) {
+    return cv::Point(std::clamp(static_cast<int>(p.x / cell), 0, grid_cols - 1),
+                     std::clamp(static_cast<int>(p.y / cell), 0, grid_rows - 1));
+  };
+  auto crowded = [&](cv::Point2f p) {
+    const cv::Point g = cell_of(p);
+    for (int gy = std::max(0, g.y - 1); gy <= std::min(grid_rows - 1, g.y + 1); ++gy)
+      for (int gx = std::max(0, g.x - 1); gx <= std::min(grid_cols - 1, g.x + 1); ++gx)
+        for (const cv::Point2f& q : grid[gy * grid_cols + gx])
+          if ((p.x - q.x) * (p.x - q.x) + (p.y - q.y) * (p.y - q.y) < min_distance * min_distance)
+            return true;
+    return false;
+  };
+  auto occupy = [&](cv::Point2f p) {
+    const cv::Point g = cell_of(p);
+    grid[g.y * grid_cols + g.x].push_back(p);
+  };
+  for (const FeatureState& f : current_)
+    if (f.status == TrackStatus::kTracked) occupy(f.position_px);
+
+  const float border = static_cast<float>(options_.border_px);
+  std::vector<SurfKeypoint> accepted;
+  for (const SurfKeypoint& kp : candidates) {
+    if (static_cast<int>(accepted.size()) >= room) break;
+    const cv::Point2f p = kp.position_px;
+    if (p.x < border || p.y < border || p.x > gray_.cols - 1 - border ||
+        p.y > gray_.rows - 1 - border)
+      continue;
+    if (IsSpecular(p) || crowded(p)) continue;
+    occupy(p);
+    accepted.push_back(kp);
+  }
+  cv::Mat descriptors;
+  surf_.Describe(accepted, &descriptors);
+  for (size_t i = 0; i < accepted.size(); ++i) {
+    const int id = store_.Add(accepted[i], descriptors.row(static_cast<int>(i)));
+    store_.Record(id, {frame_, accepted[i].position_px, TrackStatus::kTracked});
+    current_.push_back({id, accepted[i].position_px, cv::Point2f(0, 0), TrackStatus::kTracked});
+  }
+  return static_cast<int>(accepted.size());
+}
+
+TrackFrameSummary FeatureTracker::Initialize(const cv::Mat& image, const cv::Mat& roi_mask) {
+  frame_ = 0;
+  store_ = TrackStore();
+  current_.clear();
+  pyramid_.clear();
+  previous_pyramid_.clear();
+  PrepareFrame(image, roi_mask);
+  TrackFrameSummary summary;
+  summary.frame = 0;
+  summary.num_new = Detect(roi_mask);
+  summary.num_active = summary.num_new;
+  summary.count[static_cast<int>(TrackStatus::kTracked)] = summary.num_new;
+  return summary;
+}
+
+TrackFrameSummary FeatureTracker::Track(const cv::Mat& image, const cv::Mat& roi_mask) {
+  ARREG_CHECK_INPUT(frame_ >= 0, "", "FeatureTracker", "Track() before Initialize()");
+  ++frame_;
+  PrepareFrame(image, roi_mask);
+
+  // Only the features still followed go on; the lost ones were reported last frame.
+  std::vector<FeatureState> active;
+  active.reserve(current_.size());
+  for (const FeatureState& f : current_)
+    if (f.status == TrackStatus::kTracked) active.push_back(f);
+  current_.swap(active);
+
+  TrackFrameSummary summary;
+  summary.frame = frame_;
+  const int n = static_cast<int>(current_.size());
+  if (n > 0) {
+    points_from_.resize(n);
+    for (int i = 0; i < n; ++i) points_from_[i] = current_[i].position_px;
+    const LucasKanadeOptions& lk = options_.lk;
+    const cv::Size window(lk.window_px, lk.window_px);
+    const cv::TermCriteria criteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS,
+                                    lk.max_iterations, lk.epsilon_px);
+    cv::calcOpticalFlowPyrLK(previous_pyramid_, pyramid_, points_from_, points_to_, lk_status_,
+                             lk_error_, window, lk.pyramid_levels, criteria, 0,
+                             lk.min_eigen_threshold);
+    const bool fb = lk.forward_backward_max_px > 0;
+    if (fb) {
+      cv::calcOpticalFlowPyrLK(pyramid_, previous_pyramid_, points_to_, points_back_,
+                               lk_status_back_, lk_error_, window, lk.pyramid_levels, criteria, 0,
+                               lk.min_eigen_threshold);
+    }
+    const float border = static_cast<float>(options_.border_px);
+    std::vector<int> candidates;
+    candidates.reserve(n);
+    for (int i = 0; i < n; ++i) {
+      FeatureState& f = current_[i];
+      const cv::Point2f from = f.position_px, to = points_to_[i];
+      // A highlight that appears over a feature hides it: LK then fails or
+      // flees the bright spot, and the highlight is the reason reported.
+      if (!lk_status_[i]) {
+        f.status = IsSpecular(from) ? TrackStatus::kSpecular : TrackStatus::kLostFlow;
+        continue;
+      }
+      f.displacement_px = to - f.position_px;
+      f.position_px = to;
+      if (to.x < border || to.y < border || to.x > gray_.cols - 1 - border ||
+          to.y > gray_.rows - 1 - border) {
+        f.status = TrackStatus::kLostBorder;
+      } else if (IsSpecular(to) || IsSpecular(from)) {
+        f.status = TrackStatus::kSpecular;
+      } else if (fb && (!lk_status_back_[i] ||
+                        cv::norm(points_back_[i] - points_from_[i]) > lk.forward_backward_max_px)) {
+        f.status = TrackStatus::kLostForwardBackward;
+      } else if (!InsideRoi(to, roi_mask)) {
+        f.status = TrackStatus::kLostRoi;
+      } else {
+        candidates.push_back(i);
+      }
+    }
+    if (options_.outliers.enabled) {
+      std::vector<cv::Point2f> positions, displacements;
+      for (int i : candidates) {
+        positions.push_back(current_[i].position_px);
+        displacements.push_back(current_[i].displacement_px);
+      }
+      const std::vector<bool> outlier =
+          SpatioTemporalOutliers(positions, displacements, options_.outliers);
+      for (size_t j = 0; j < candidates.size(); ++j)
+        if (outlier[j]) current_[candidates[j]].status = TrackStatus::kOutlierSpatioTemporal;
+    }
+    for (const FeatureState& f : current_) store_.Record(f.id, {frame_, f.position_px, f.status});
+  }
+  if (options_.redetect_every_frames > 0 && frame_ % options_.redetect_every_frames == 0)
+    summary.num_new = Detect(roi_mask);
+  for (const FeatureState& f : current_) ++summary.count[static_cast<int>(f.status)];
+  summary.num_active = summary.count[static_cast<int>(TrackStatus::kTracked)];
+  return summary;
+}
+
+}  // namespace arreg

@@ -1,0 +1,201 @@
+// Sparse feature tracking for the registration (thesis 7.4.1): SURF points in the
+// first frame, pyramidal Lucas-Kanade from frame to frame, and the filters that drop bad tracks.
+#pragma once
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "tracking/surf.h"
+
+namespace arreg {
+
+// Why a feature is (no longer) followed. Anything but kTracked is final: the
+// feature leaves the active set for good and keeps that status in its history.
+enum class TrackStatus : uint8_t {
+  kTracked = 0,            // followed into this frame (or detected in it)
+  kLostBorder,             // left the image or came within border_px of its edge
+  kLostRoi,                // left the region of interest
+  kLostFlow,               // Lucas-Kanade found no solution (flat or occluded window)
+  kLostForwardBackward,    // tracking back does not return to the start
+  kOutlierSpatioTemporal,  // moved far more than its neighbours in one frame
+  kSpecular,               // landed on a specular highlight
+};
+constexpr int kNumTrackStatuses = 7;
+const char* TrackStatusName(TrackStatus status);
+
+struct LucasKanadeOptions {
+  // Side of the square integration window, pixels (odd, >= 5). Default 21.
+  int window_px = 21;
+  // Coarsest pyramid level (0 = no pyramid); each level halves the image. Default 3.
+  int pyramid_levels = 3;
+  // Iterations per pyramid level. Default 20.
+  int max_iterations = 20;
+  // Stop when the update is below this, pixels. Default 0.03.
+  double epsilon_px = 0.03;
+  // Minimum eigenvalue of the window's gradient matrix (OpenCV's normalised
+  // units); flatter windows are lost (kLostFlow). Default 1e-4.
+  double min_eigen_threshold = 1e-4;
+  // Forward-backward consistency: lost when tracking back lands farther than
+  // this from the start, pixels; <= 0 disables the check. Default 1.0.
+  double forward_backward_max_px = 1.0;
+
+  void Check() const;  // throws arreg::Error naming the bad field
+};
+
+// Spatio-temporal outlier filter (thesis 7.4.1): a feature whose frame-to-frame
+// displacement is far above the average displacement of its neighbours jumps
+// or slides implausibly and is dropped for good.
+struct OutlierFilterOptions {
+  bool enabled = true;  // default true
+  // Neighbours compared with (k nearest tracked features); 0 compares with the
+  // average over all tracked features, as the thesis does. Default 8.
+  int neighbours = 8;
+  // Outlier when displacement > ratio * neighbours' mean displacement + slack_px. Default 3.
+  double ratio = 3.0;
+  // Absolute allowance, pixels, so that still scenes (mean ~0) do not flag noise. Default 2.0.
+  double slack_px = 2.0;
+
+  void Check() const;  // throws arreg::Error naming the bad field
+};
+
+// Specular highlights: bright, colourless pixels whose appearance moves with
+// the light, not with the tissue.
+struct SpecularOptions {
+  bool enabled = true;  // default true
+  // Minimum brightness max(B, G, R) of a highlight pixel, 0..255. Default 240.
+  int min_value = 240;
+  // Maximum HSV saturation 255 * (max - min) / max of a highlight pixel, 0..255
+  // (not used for grey input). Default 60.
+  int max_saturation = 60;
+  // A feature within this many pixels of a highlight pixel is specular. Default 2.
+  int radius_px = 2;
+
+  void Check() const;  // throws arreg::Error naming the bad field
+};
+
+struct FeatureTrackerOptions {
+  // Detector; max_keypoints is overridden by max_features.
+  SurfOptions surf;
+  LucasKanadeOptions lk;
+  OutlierFilterOptions outliers;
+  SpecularOptions specular;
+  // Most features followed at once. Default 1000.
+  int max_features = 1000;
+  // Detected features closer than this to a stronger one are skipped, pixels. Default 4.
+  double min_distance_px = 4.0;
+  // Features within this distance of the image edge are lost (kLostBorder), pixels. Default 4.
+  int border_px = 4;
+  // Re-detection: every `redetect_every_frames` frames (0 = never, the default)
+  // new SURF points fill the ROI away from the followed ones; they get new ids.
+  int redetect_every_frames = 0;
+
+  void Check() const;  // throws arreg::Error naming the bad field
+};
+
+// One observation of one feature.
+struct TrackObservation {
+  int frame = 0;
+  cv::Point2f position_px;  // where it was (for lost features: where LK put it)
+  TrackStatus status = TrackStatus::kTracked;
+};
+
+// Every feature ever detected, by id (0, 1, 2, ... in order of detection):
+// its SURF keypoint and descriptor at detection and its history.
+class TrackStore {
+ public:
+  // Registers a new feature; returns its id. `descriptor_row` is (1 x 64) CV_32F.
+  int Add(const SurfKeypoint& keypoint, const cv::Mat& descriptor_row);
+  void Record(int id, const TrackObservation& observation);
+
+  int num_features() const { return static_cast<int>(histories_.size()); }
+  const std::vector<TrackObservation>& history(int id) const;
+  const SurfKeypoint& keypoint(int id) const;
+  // (1 x 64) CV_32F descriptor at detection.
+  cv::Mat descriptor(int id) const;
+  // (#features x 64) CV_32F, row = id.
+  const cv::Mat& descriptors() const { return descriptors_; }
+  TrackStatus last_status(int id) const { return history(id).back().status; }
+  int first_frame(int id) const { return history(id).front().frame; }
+
+  // Writes the histories as CSV (id,frame,x,y,status) atomically.
+  void WriteCsv(const std::string& path) const;
+
+ private:
+  std::vector<std::vector<TrackObservation>> histories_;
+  std::vector<SurfKeypoint> keypoints_;
+  cv::Mat descriptors_;
+};
+
+// A feature as seen in the current frame.
+struct FeatureState {
+  int id = 0;
+  cv::Point2f position_px;
+  cv::Point2f displacement_px;  // since the previous frame (0 for new features)
+  TrackStatus status = TrackStatus::kTracked;
+};
+
+struct TrackFrameSummary {
+  int frame = 0;
+  int num_active = 0;                          // features tracked into this frame
+  int num_new = 0;                             // of them, detected in this frame
+  std::array<int, kNumTrackStatuses> count{};  // features per status in this frame
+};
+
+// Follows SURF features through a video. Input images are CV_8UC1 or CV_8UC3
+// (BGR; then highlights are told by their saturation too); ROI masks are
+// CV_8UC1 of the image size, nonzero inside, or empty for the whole image.
+class FeatureTracker {
+ public:
+  explicit FeatureTracker(const FeatureTrackerOptions& options = {});
+
+  // Detects the features in the first frame (inside `roi_mask`, off highlights).
+  TrackFrameSummary Initialize(const cv::Mat& image, const cv::Mat& roi_mask = cv::Mat());
+  // Follows the active features into the next frame; `roi_mask` may change per
+  // frame (e.g. the projected model silhouette).
+  TrackFrameSummary Track(const cv::Mat& image, const cv::Mat& roi_mask = cv::Mat());
+
+  // Active features plus those lost in the last frame (with their status).
+  const std::vector<FeatureState>& current() const { return current_; }
+  int num_active() const;
+  int frame() const { return frame_; }
+  const TrackStore& store() const { return store_; }
+  const FeatureTrackerOptions& options() const { return options_; }
+
+ private:
+  void PrepareFrame(const cv::Mat& image, const cv::Mat& roi_mask);
+  bool IsSpecular(cv::Point2f p) const;
+  bool InsideRoi(cv::Point2f p, const cv::Mat& roi_mask) const;
+  // Detects new features in the current frame away from the active ones.
+  int Detect(const cv::Mat& roi_mask);
+
+  FeatureTrackerOptions options_;
+  SurfDetector surf_;
+  int frame_ = -1;
+  cv::Mat gray_, bgr_;  // current frame (bgr_ empty for grey input)
+  std::vector<cv::Mat> pyramid_, previous_pyramid_;
+  std::vector<FeatureState> current_;
+  TrackStore store_;
+  // Scratch kept between frames to avoid reallocation.
+  std::vector<cv::Point2f> points_from_, points_to_, points_back_;
+  std::vector<uint8_t> lk_status_, lk_status_back_;
+  std::vector<float> lk_error_;
+};
+
+// The spatio-temporal test on its own: flags[i] is true when |displacements_px[i]|
+// exceeds options.ratio times the mean displacement magnitude of the
+// options.neighbours nearest other points (of all others when 0) plus
+// options.slack_px. Positions are where the points are now.
+std::vector<bool> SpatioTemporalOutliers(const std::vector<cv::Point2f>& positions_px,
+                                         const std::vector<cv::Point2f>& displacements_px,
+                                         const OutlierFilterOptions& options);
+
+// Highlight mask (CV_8UC1, 255 on highlight pixels) of a BGR or grey image.
+cv::Mat SpecularMask(const cv::Mat& image, const SpecularOptions& options);
+
+// Reads a mask image (any non-zero pixel is inside) and checks its size.
+cv::Mat ReadMask(const std::string& path, int width, int height);
+
+}  // namespace arreg

@@ -1,0 +1,196 @@
+#include "tracking/tracker.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include <opencv2/imgproc.hpp>
+
+#include "core/error.h"
+
+namespace arreg {
+namespace {
+
+// Band-limited random texture (blurred noise at three scales), mean 110, std
+// 30: like tissue, it stays below highlight brightness (240) but for a rare pixel.
+cv::Mat Texture(int rows, int cols, unsigned seed) {
+  cv::RNG rng(seed);
+  cv::Mat sum = cv::Mat::zeros(rows, cols, CV_32F);
+  for (double sigma : {2.0, 4.0, 8.0}) {
+    cv::Mat noise(rows, cols, CV_32F);
+    rng.fill(noise, cv::RNG::NORMAL, 0, 1);
+    cv::GaussianBlur(noise, noise, cv::Size(), sigma, sigma, cv::BORDER_REFLECT);
+    cv::Scalar mean, stddev;
+    cv::meanStdDev(noise, mean, stddev);
+    sum += noise / stddev[0];
+  }
+  cv::Scalar mean, stddev;
+  cv::meanStdDev(sum, mean, stddev);
+  cv::Mat out;
+  sum.convertTo(out, CV_8U, 30.0 / stddev[0], 110 - 30.0 * mean[0] / stddev[0]);
+  return out;
+}
+
+cv::Point2f Apply(const cv::Matx23d& m, cv::Point2f p) {
+  return cv::Point2f(static_cast<float>(m(0, 0) * p.x + m(0, 1) * p.y + m(0, 2)),
+                     static_cast<float>(m(1, 0) * p.x + m(1, 1) * p.y + m(1, 2)));
+}
+
+TEST(FeatureTracker, SubPixelWarpIsRecoveredToATenthOfAPixel) {
+  const cv::Mat a = Texture(400, 480, 11);
+  // Small rotation + scale + sub-pixel shift (an elastic scene moves little per frame).
+  cv::Matx23d m = cv::getRotationMatrix2D(cv::Point2f(240, 200), 1.5, 1.01);
+  m(0, 2) += 1.37;
+  m(1, 2) -= 0.62;
+  cv::Mat b;
+  cv::warpAffine(a, b, m, a.size(), cv::INTER_CUBIC, cv::BORDER_REFLECT);
+  FeatureTracker tracker;
+  const auto first = tracker.Initialize(a);
+  ASSERT_GT(first.num_active, 100);
+  const auto second = tracker.Track(b);
+  std::vector<double> errors;
+  for (const FeatureState& f : tracker.current()) {
+    if (f.status != TrackStatus::kTracked) continue;
+    const cv::Point2f start = tracker.store().history(f.id).front().position_px;
+    errors.push_back(cv::norm(f.position_px - Apply(m, start)));
+  }
+  ASSERT_GT(errors.size(), 0.9 * first.num_active) << "almost all features survive a small warp";
+  std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
+  EXPECT_LT(errors[errors.size() / 2], 0.1);
+  EXPECT_EQ(second.count[static_cast<int>(TrackStatus::kOutlierSpatioTemporal)], 0)
+      << "a smooth motion has no outliers";
+}
+
+TEST(FeatureTracker, RoiBorderAndIdsBehave) {
+  // A camera pan: frame b is frame a's view moved 20 px to the right, so the
+  // scene moves 20 px left and features in a's first columns leave the image.
+  const cv::Mat scene = Texture(300, 340, 12);
+  const cv::Mat a = scene(cv::Rect(0, 0, 300, 300)).clone();
+  const cv::Mat b = scene(cv::Rect(20, 0, 300, 300)).clone();
+  FeatureTracker tracker;
+  tracker.Initialize(a);
+  const int initial = tracker.num_active();
+  ASSERT_GT(initial, 50);
+  // ROI: the top half only.
+  cv::Mat roi = cv::Mat::zeros(a.size(), CV_8UC1);
+  roi(cv::Rect(0, 0, 300, 150)).setTo(255);
+  tracker.Track(b, roi);
+  int checked = 0, left = 0;
+  for (const FeatureState& f : tracker.current()) {
+    const cv::Point2f start = tracker.store().history(f.id).front().position_px;
+    const cv::Point2f expected = start + cv::Point2f(-20, 0);
+    if (expected.x < tracker.options().border_px) {
+      ++left;
+      EXPECT_TRUE(f.status == TrackStatus::kLostBorder || f.status == TrackStatus::kLostFlow ||
+                  f.status == TrackStatus::kLostForwardBackward)
+          << TrackStatusName(f.status);
+    } else if (expected.x > 25 && expected.x < 270 && std::abs(expected.y - 150) > 10 &&
+               expected.y > 15 && expected.y < 285) {
+      ++checked;
+      const TrackStatus want = expected.y < 150 ? TrackStatus::kTracked : TrackStatus::kLostRoi;
+      EXPECT_EQ(f.status, want) << "feature " << f.id << " at " << expected;
+    }
+  }
+  EXPECT_GT(checked, 30);
+  EXPECT_GT(left, 0);
+  // Lost features stay lost; ids never change.
+  std::set<int> active_before;
+  for (const FeatureState& f : tracker.current())
+    if (f.status == TrackStatus::kTracked) active_before.insert(f.id);
+  tracker.Track(b, roi);
+  for (const FeatureState& f : tracker.current()) EXPECT_TRUE(active_before.count(f.id));
+  for (int id = 0; id < tracker.store().num_features(); ++id) {
+    const auto& h = tracker.store().history(id);
+    for (size_t k = 0; k + 1 < h.size(); ++k)
+      EXPECT_EQ(h[k].status, TrackStatus::kTracked) << "only the last entry may be a loss";
+  }
+}
+
+TEST(FeatureTracker, SpecularHighlightDropsTheFeatureUnderIt) {
+  const cv::Mat a = Texture(240, 240, 13);
+  cv::Mat a_bgr;
+  cv::cvtColor(a, a_bgr, cv::COLOR_GRAY2BGR);
+  FeatureTracker tracker;
+  tracker.Initialize(a_bgr);
+  ASSERT_GT(tracker.num_active(), 10);
+  // A white highlight appears on the strongest feature.
+  const cv::Point2f p = tracker.store().history(0).front().position_px;
+  cv::Mat b = a_bgr.clone();
+  cv::circle(b, cv::Point(cvRound(p.x), cvRound(p.y)), 8, cv::Scalar(255, 255, 255), -1);
+  tracker.Track(b);
+  EXPECT_EQ(tracker.store().last_status(0), TrackStatus::kSpecular)
+      << p << " -> " << tracker.store().history(0).back().position_px;
+  // No feature is detected on a highlight.
+  FeatureTracker fresh;
+  fresh.Initialize(b);
+  for (const FeatureState& f : fresh.current()) EXPECT_GT(cv::norm(f.position_px - p), 8.0);
+  // A bright but saturated (red) spot is no highlight.
+  const cv::Mat mask = SpecularMask(b, tracker.options().specular);
+  EXPECT_EQ(mask.at<uint8_t>(cvRound(p.y), cvRound(p.x)), 255);
+  cv::Mat red(4, 4, CV_8UC3, cv::Scalar(40, 40, 250));
+  EXPECT_EQ(cv::countNonZero(SpecularMask(red, tracker.options().specular)), 0);
+}
+
+TEST(FeatureTracker, RedetectionAddsNewIdsAwayFromTrackedFeatures) {
+  const cv::Mat a = Texture(300, 300, 14);
+  FeatureTrackerOptions options;
+  options.redetect_every_frames = 1;
+  options.max_features = 400;
+  FeatureTracker tracker(options);
+  cv::Mat roi = cv::Mat::zeros(a.size(), CV_8UC1);
+  roi(cv::Rect(0, 0, 150, 300)).setTo(255);
+  tracker.Initialize(a, roi);
+  const int first_ids = tracker.store().num_features();
+  const auto summary = tracker.Track(a);  // the whole image is allowed now
+  EXPECT_GT(summary.num_new, 20);
+  EXPECT_EQ(tracker.store().num_features(), first_ids + summary.num_new);
+  for (const FeatureState& f : tracker.current()) {
+    if (f.id >= first_ids) {
+      EXPECT_EQ(tracker.store().first_frame(f.id), 1);
+      for (const FeatureState& g : tracker.current())
+        if (g.id != f.id) {
+          EXPECT_GE(cv::norm(f.position_px - g.position_px), options.min_distance_px - 1e-3);
+        }
+    }
+  }
+  EXPECT_LE(tracker.num_active(), options.max_features);
+}
+
+TEST(SpatioTemporalOutliers, FlagsAJumpAmongSlowNeighboursButNotAPan) {
+  std::vector<cv::Point2f> positions, displacements;
+  for (int y = 0; y < 10; ++y)
+    for (int x = 0; x < 10; ++x) {
+      positions.emplace_back(20.f * x, 20.f * y);
+      displacements.emplace_back(1.0f, 0.5f + 0.05f * x);
+    }
+  displacements[45] = cv::Point2f(-7, 6);  // jumps
+  OutlierFilterOptions options;
+  auto flags = SpatioTemporalOutliers(positions, displacements, options);
+  EXPECT_EQ(std::count(flags.begin(), flags.end(), true), 1);
+  EXPECT_TRUE(flags[45]);
+  options.neighbours = 0;  // thesis variant: global average
+  flags = SpatioTemporalOutliers(positions, displacements, options);
+  EXPECT_TRUE(flags[45]);
+  EXPECT_EQ(std::count(flags.begin(), flags.end(), true), 1);
+  // A uniform camera pan of 15 px is no outlier anywhere.
+  for (auto& d : displacements) d = cv::Point2f(15, -3);
+  options.neighbours = 8;
+  flags = SpatioTemporalOutliers(positions, displacements, options);
+  EXPECT_EQ(std::count(flags.begin(), flags.end(), true), 0);
+}
+
+TEST(FeatureTracker, RejectsBadInput) {
+  FeatureTrackerOptions options;
+  options.lk.window_px = 4;
+  EXPECT_THROW(FeatureTracker{options}, Error);
+  FeatureTracker tracker;
+  EXPECT_THROW(tracker.Track(cv::Mat(10, 10, CV_8UC1)), Error);
+  tracker.Initialize(Texture(100, 100, 1));
+  EXPECT_THROW(tracker.Track(Texture(120, 100, 1)), Error);
+  EXPECT_THROW(tracker.Track(Texture(100, 100, 1), cv::Mat(50, 50, CV_8UC1)), Error);
+}
+
+}  // namespace
+}  // namespace arreg
