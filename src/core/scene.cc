@@ -29,10 +29,12 @@ const nlohmann::json& ModuleSection(const Scene& scene, const std::string& name)
   return *ModuleSection(const_cast<Scene*>(&scene), name);
 }
 
+enum class PathKind { kFile, kDirectory, kFileOrDirectory };
+
 // Resolves a path read from the scene and, when asked, checks that it exists.
 std::string CheckedPath(const std::string& value, const std::string& file,
                         const std::string& key_path, const Scene& scene, bool check_exists,
-                        bool want_directory) {
+                        PathKind kind) {
   if (value.empty()) throw Error(file, key_path, "path is empty");
   const std::string resolved = scene.ResolvePath(value);
   if (check_exists) {
@@ -41,9 +43,9 @@ std::string CheckedPath(const std::string& value, const std::string& file,
     if (!fs::exists(status))
       throw Error(file, key_path,
                   "\"" + value + "\" does not exist (resolved to " + resolved + ")");
-    if (want_directory && !fs::is_directory(status))
+    if (kind == PathKind::kDirectory && !fs::is_directory(status))
       throw Error(file, key_path, "\"" + value + "\" is not a directory");
-    if (!want_directory && fs::is_directory(status))
+    if (kind == PathKind::kFile && fs::is_directory(status))
       throw Error(file, key_path, "\"" + value + "\" is a directory, expected a file");
   }
   return resolved;
@@ -51,15 +53,14 @@ std::string CheckedPath(const std::string& value, const std::string& file,
 
 // Reads a path-valued key; "" when optional and absent.
 std::string ReadPath(JsonObjectReader& reader, const std::string& key, const Scene& scene,
-                     bool required, bool check_exists, bool want_directory) {
+                     bool required, bool check_exists, PathKind kind) {
   std::string value;
   if (required) {
     reader.Required(key, &value);
   } else if (!reader.Optional(key, &value)) {
     return "";
   }
-  return CheckedPath(value, reader.file(), reader.KeyPath(key), scene, check_exists,
-                     want_directory);
+  return CheckedPath(value, reader.file(), reader.KeyPath(key), scene, check_exists, kind);
 }
 
 Material ReadMaterial(JsonObjectReader& r) {
@@ -126,10 +127,10 @@ Scene ParseScene(const nlohmann::json& json, const std::string& path,
     root.Required("model", &model);
     if (model.is_string()) {
       scene.model_mesh_path =
-          CheckedPath(model.get<std::string>(), path, "model", scene, check, false);
+          CheckedPath(model.get<std::string>(), path, "model", scene, check, PathKind::kFile);
     } else {
       JsonObjectReader r = root.Object("model");
-      scene.model_mesh_path = ReadPath(r, "mesh", scene, true, check, false);
+      scene.model_mesh_path = ReadPath(r, "mesh", scene, true, check, PathKind::kFile);
       if (auto placement = r.OptionalObject("world_from_model"))
         scene.world_from_model = ReadRigidTransformJson(*placement);
       r.Finish();
@@ -142,7 +143,7 @@ Scene ParseScene(const nlohmann::json& json, const std::string& path,
     r.Required("name", &s.name);
     if (s.name.empty()) r.Fail("name", "must not be empty");
     if (!names.insert(s.name).second) r.Fail("name", "duplicate structure name \"" + s.name + "\"");
-    s.mesh_path = ReadPath(r, "mesh", scene, true, check, false);
+    s.mesh_path = ReadPath(r, "mesh", scene, true, check, PathKind::kFile);
     if (r.Optional("color", &s.color_rgb)) {
       for (int i = 0; i < 3; ++i)
         if (!(s.color_rgb[i] >= 0.0 && s.color_rgb[i] <= 1.0))
@@ -159,7 +160,7 @@ Scene ParseScene(const nlohmann::json& json, const std::string& path,
     nlohmann::json camera;
     root.Required("camera", &camera);
     if (camera.is_string()) {
-      scene.camera_file = ReadPath(root, "camera", scene, true, true, false);
+      scene.camera_file = ReadPath(root, "camera", scene, true, true, PathKind::kFile);
       try {
         scene.camera = ReadCameraFile(scene.camera_file);
       } catch (const Error& e) {
@@ -171,8 +172,10 @@ Scene ParseScene(const nlohmann::json& json, const std::string& path,
     }
   }
 
-  scene.video_path = ReadPath(root, "video", scene, true, check, false);
-  scene.ground_truth_path = ReadPath(root, "ground_truth", scene, false, check, true);
+  // Image folders are accepted as videos too (tracking's VideoReader reads them).
+  scene.video_path = ReadPath(root, "video", scene, true, check, PathKind::kFileOrDirectory);
+  scene.ground_truth_path =
+      ReadPath(root, "ground_truth", scene, false, check, PathKind::kDirectory);
 
   if (auto material = root.OptionalObject("material")) scene.material = ReadMaterial(*material);
 

@@ -1,0 +1,283 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "core/error.h"
+#include "core/json_reader.h"
+#include "core/scene.h"
+#include "test_util.h"
+
+namespace arreg {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+void Touch(const std::string& path) {
+  fs::create_directories(fs::path(path).parent_path());
+  std::ofstream(path) << "x\n";
+}
+
+template <typename F>
+std::string ErrorMessage(F f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "no arreg::Error thrown";
+  return "";
+}
+
+// A scene folder with every referenced file present and a full scene JSON.
+struct SceneFixture {
+  std::string dir;
+  json scene;
+
+  explicit SceneFixture(const std::string& name) {
+    dir = testing::ScratchDir(name);
+    Touch(dir + "/meshes/liver.msh");
+    Touch(dir + "/meshes/tumour.obj");
+    Touch(dir + "/meshes/vessels.obj");
+    Touch(dir + "/video/take1.mp4");
+    fs::create_directories(dir + "/gt");
+    scene = json::parse(R"({
+      "units": "m",
+      "description": "synthetic liver",
+      "model": {"mesh": "meshes/liver.msh",
+                "world_from_model": {"rotation": [[0, -1, 0], [1, 0, 0], [0, 0, 1]],
+                                     "translation_mm": [1, 2, 3]}},
+      "internal_structures": [
+        {"name": "tumour", "mesh": "meshes/tumour.obj", "color": [1, 0, 0], "opacity": 0.8},
+        {"name": "vessels", "mesh": "meshes/vessels.obj"}
+      ],
+      "camera": {"width": 640, "height": 480, "fx": 500, "fy": 500, "cx": 319.5, "cy": 239.5,
+                 "distortion": [-0.1, 0.01, 0, 0, 0]},
+      "video": "video/take1.mp4",
+      "ground_truth": "gt",
+      "material": {"youngs_modulus_pa": 3000, "poisson_ratio": 0.49},
+      "tracking": {"max_features": 400},
+      "mechanics": {"solver": "cg"},
+      "lifting": {},
+      "cutting": {"tau": 8},
+      "render": {"organ_opacity": 0.5},
+      "output": {"write_meshes": true}
+    })");
+  }
+  std::string Write(const json& j, const std::string& name = "scene.json") const {
+    const std::string path = dir + "/" + name;
+    std::ofstream(path) << j.dump(2);
+    return path;
+  }
+};
+
+TEST(Scene, FullSceneParses) {
+  SceneFixture f("scene_full");
+  const Scene s = ReadScene(f.Write(f.scene));
+  EXPECT_EQ(s.units, "m");
+  EXPECT_EQ(s.mm_per_unit, 1000.0);
+  EXPECT_EQ(s.description, "synthetic liver");
+  EXPECT_EQ(s.model_mesh_path, fs::weakly_canonical(f.dir + "/meshes/liver.msh").string());
+  EXPECT_LT((s.world_from_model * Eigen::Vector3d(1, 0, 0) - Eigen::Vector3d(1, 3, 3)).norm(),
+            1e-12);
+  ASSERT_EQ(s.internal_structures.size(), 2u);
+  EXPECT_EQ(s.internal_structures[0].name, "tumour");
+  EXPECT_EQ(s.internal_structures[0].color_rgb, Eigen::Vector3d(1, 0, 0));
+  EXPECT_EQ(s.internal_structures[0].opacity, 0.8);
+  EXPECT_EQ(s.internal_structures[1].opacity, 1.0);
+  EXPECT_EQ(s.camera.width, 640);
+  EXPECT_EQ(s.camera.distortion.k1, -0.1);
+  EXPECT_TRUE(s.camera_file.empty());
+  EXPECT_EQ(s.video_path, fs::weakly_canonical(f.dir + "/video/take1.mp4").string());
+  EXPECT_EQ(s.ground_truth_path, fs::weakly_canonical(f.dir + "/gt").string());
+  EXPECT_EQ(s.material.youngs_modulus_pa, 3000);
+  EXPECT_EQ(s.material.poisson_ratio, 0.49);
+  EXPECT_EQ(s.material.density_kg_m3, Material().density_kg_m3);
+  EXPECT_EQ(s.tracking["max_features"], 400);
+  EXPECT_EQ(s.cutting["tau"], 8);
+  EXPECT_TRUE(s.output["write_meshes"].get<bool>());
+  // Module sections are parsed later by their modules with the same file and key path.
+  JsonObjectReader mech(s.mechanics, s.path, "mechanics");
+  std::string solver;
+  mech.Required("solver", &solver);
+  EXPECT_EQ(solver, "cg");
+}
+
+TEST(Scene, MinimalSceneUsesDefaults) {
+  SceneFixture f("scene_minimal");
+  const json j = {
+      {"model", "meshes/liver.msh"}, {"camera", f.scene["camera"]}, {"video", "video/take1.mp4"}};
+  const Scene s = ReadScene(f.Write(j));
+  EXPECT_EQ(s.units, "mm");
+  EXPECT_EQ(s.mm_per_unit, 1.0);
+  EXPECT_TRUE(s.world_from_model.isApprox(Eigen::Isometry3d::Identity()));
+  EXPECT_TRUE(s.internal_structures.empty());
+  EXPECT_TRUE(s.ground_truth_path.empty());
+  EXPECT_TRUE(s.tracking.is_object() && s.tracking.empty());
+  EXPECT_EQ(s.material.poisson_ratio, Material().poisson_ratio);
+}
+
+TEST(Scene, EachMissingRequiredKeyIsNamed) {
+  SceneFixture f("scene_missing");
+  for (const std::string key : {"model", "camera", "video"}) {
+    json j = f.scene;
+    j.erase(key);
+    const std::string path = f.Write(j);
+    const std::string msg = ErrorMessage([&] { ReadScene(path); });
+    EXPECT_NE(msg.find("scene.json: " + key + ": required key is missing"), std::string::npos)
+        << msg;
+  }
+  json j = f.scene;
+  j["model"].erase("mesh");
+  const std::string msg = ErrorMessage([&] { ReadScene(f.Write(j)); });
+  EXPECT_NE(msg.find("model.mesh: required key is missing"), std::string::npos) << msg;
+}
+
+TEST(Scene, UnknownKeysAreNamed) {
+  SceneFixture f("scene_unknown");
+  json j = f.scene;
+  j["tracknig"] = json::object();
+  std::string msg = ErrorMessage([&] { ReadScene(f.Write(j)); });
+  EXPECT_NE(msg.find("scene.json: tracknig: unknown key"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("tracking"), std::string::npos) << msg;
+
+  j = f.scene;
+  j["camera"]["fxx"] = 1;
+  msg = ErrorMessage([&] { ReadScene(f.Write(j)); });
+  EXPECT_NE(msg.find("camera.fxx: unknown key"), std::string::npos) << msg;
+
+  j = f.scene;
+  j["internal_structures"][1]["colour"] = {0, 1, 0};
+  msg = ErrorMessage([&] { ReadScene(f.Write(j)); });
+  EXPECT_NE(msg.find("internal_structures[1].colour: unknown key"), std::string::npos) << msg;
+
+  j = f.scene;
+  j["material"]["youngs_modulus"] = 1;
+  msg = ErrorMessage([&] { ReadScene(f.Write(j)); });
+  EXPECT_NE(msg.find("material.youngs_modulus: unknown key"), std::string::npos) << msg;
+}
+
+TEST(Scene, InvalidValuesAreNamed) {
+  SceneFixture f("scene_invalid");
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {R"({"units": "cm"})", "units: \"cm\" is not one of \"mm\", \"m\""},
+      {R"({"video": "video/missing.mp4"})", "video: \"video/missing.mp4\" does not exist"},
+      {R"({"ground_truth": "video/take1.mp4"})",
+       "ground_truth: \"video/take1.mp4\" is not a directory"},
+      {R"({"model": "meshes"})", "model: \"meshes\" is a directory"},
+      {R"({"material": {"poisson_ratio": 0.5}})", "material.poisson_ratio: must be in (-1, 0.5)"},
+      {R"({"material": {"youngs_modulus_pa": -2}})",
+       "material.youngs_modulus_pa: must be positive"},
+      {R"({"camera": {"width": 640, "height": 480, "fx": 0, "fy": 500, "cx": 1, "cy": 1}})",
+       "camera.fx: focal length must be positive"},
+      {R"({"tracking": [1, 2]})", "tracking: expected a JSON object"},
+      {R"({"internal_structures": [{"name": "a", "mesh": "meshes/tumour.obj", "color": [255, 0, 0]}]})",
+       "internal_structures[0].color: RGB components must be in [0, 1]"},
+      {R"({"internal_structures": [{"name": "a", "mesh": "meshes/tumour.obj"},
+                                   {"name": "a", "mesh": "meshes/vessels.obj"}]})",
+       "internal_structures[1].name: duplicate structure name"},
+      {R"({"video": 3})", "video: expected a string"},
+  };
+  for (const auto& [patch, expected] : cases) {
+    json j = f.scene;
+    j.merge_patch(json::parse(patch));
+    const std::string msg = ErrorMessage([&] { ReadScene(f.Write(j)); });
+    EXPECT_NE(msg.find("scene.json: " + expected), std::string::npos) << patch << " -> " << msg;
+  }
+}
+
+TEST(Scene, RelativePathsResolveAgainstTheSceneFolder) {
+  SceneFixture f("scene_paths");
+  Scene s;
+  s.directory = "/data/scenes/liver";
+  EXPECT_EQ(s.ResolvePath("meshes/liver.msh"), "/data/scenes/liver/meshes/liver.msh");
+  EXPECT_EQ(s.ResolvePath("../shared/video.mp4"), "/data/scenes/shared/video.mp4");
+  EXPECT_EQ(s.ResolvePath("/abs/video.mp4"), "/abs/video.mp4");
+  EXPECT_EQ(s.ResolvePath(""), "");
+
+  // A scene in a subfolder referring to files one level up, read through a
+  // relative path from another working directory.
+  fs::create_directories(f.dir + "/scenes");
+  json j = f.scene;
+  j["model"]["mesh"] = "../meshes/liver.msh";
+  j["internal_structures"] = json::array();
+  j["video"] = "../video/take1.mp4";
+  j["ground_truth"] = "../gt";
+  const std::string path = f.Write(j, "scenes/scene.json");
+  const fs::path old_cwd = fs::current_path();
+  fs::current_path(f.dir + "/video");
+  Scene read;
+  EXPECT_NO_THROW(read = ReadScene("../scenes/scene.json"));
+  fs::current_path(old_cwd);
+  EXPECT_EQ(read.model_mesh_path, fs::weakly_canonical(f.dir + "/meshes/liver.msh").string());
+  EXPECT_EQ(read.directory, fs::weakly_canonical(f.dir + "/scenes").string());
+  (void)path;
+}
+
+TEST(Scene, CameraFromCalibrationFile) {
+  SceneFixture f("scene_camera_file");
+  std::ofstream(f.dir + "/calib.yaml") << "%YAML:1.0\nimage_width: 320\nimage_height: 240\n"
+                                          "camera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  "
+                                          "dt: d\n  data: [300, 0, 160, 0, 300, 120, 0, 0, 1]\n";
+  json j = f.scene;
+  j["camera"] = "calib.yaml";
+  const Scene s = ReadScene(f.Write(j));
+  EXPECT_EQ(s.camera.width, 320);
+  EXPECT_EQ(s.camera.fx, 300);
+  EXPECT_EQ(s.camera_file, fs::weakly_canonical(f.dir + "/calib.yaml").string());
+
+  std::ofstream(f.dir + "/calib.yaml")
+      << "image_width: 320\ncamera_matrix: [300, 0, 160, 0, 300, 120, 0, 0, 1]\n";
+  const std::string msg = ErrorMessage([&] { ReadScene(f.Write(j)); });
+  EXPECT_NE(msg.find("scene.json: camera: in calibration file:"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("calib.yaml: image_height"), std::string::npos) << msg;
+
+  j["camera"] = "missing.yaml";
+  const std::string msg2 = ErrorMessage([&] { ReadScene(f.Write(j)); });
+  EXPECT_NE(msg2.find("camera: \"missing.yaml\" does not exist"), std::string::npos) << msg2;
+}
+
+TEST(Scene, WriteThenReadGivesTheSameScene) {
+  SceneFixture f("scene_write");
+  const Scene original = ReadScene(f.Write(f.scene));
+  const std::string out = f.dir + "/written.json";
+  WriteScene(out, original);
+  // Paths under the scene folder are written relative.
+  const json written = ParseJsonFile(out);
+  EXPECT_EQ(written["model"]["mesh"], "meshes/liver.msh");
+  EXPECT_EQ(written["video"], "video/take1.mp4");
+  const Scene s = ReadScene(out);
+  EXPECT_EQ(s.model_mesh_path, original.model_mesh_path);
+  EXPECT_EQ(s.video_path, original.video_path);
+  EXPECT_EQ(s.ground_truth_path, original.ground_truth_path);
+  EXPECT_EQ(s.units, original.units);
+  EXPECT_TRUE(s.world_from_model.isApprox(original.world_from_model, 1e-14));
+  ASSERT_EQ(s.internal_structures.size(), 2u);
+  EXPECT_EQ(s.internal_structures[0].mesh_path, original.internal_structures[0].mesh_path);
+  EXPECT_EQ(s.camera.distortion.ToVector(), original.camera.distortion.ToVector());
+  EXPECT_EQ(s.material.poisson_ratio, 0.49);
+  EXPECT_EQ(s.tracking, original.tracking);
+  EXPECT_EQ(s.render, original.render);
+  // Files outside the folder are written as absolute paths.
+  Scene moved = original;
+  fs::create_directories(f.dir + "/sub");
+  WriteScene(f.dir + "/sub/scene.json", moved);
+  const json sub = ParseJsonFile(f.dir + "/sub/scene.json");
+  EXPECT_EQ(sub["video"], original.video_path);
+  EXPECT_EQ(ReadScene(f.dir + "/sub/scene.json").video_path, original.video_path);
+}
+
+TEST(Scene, FileChecksCanBeTurnedOff) {
+  SceneFixture f("scene_nocheck");
+  json j = f.scene;
+  j["video"] = "not_yet_rendered.mp4";
+  ReadSceneOptions options;
+  options.check_files_exist = false;
+  const Scene s = ReadScene(f.Write(j), options);
+  EXPECT_EQ(s.video_path, fs::weakly_canonical(f.dir).string() + "/not_yet_rendered.mp4");
+  EXPECT_THROW(ReadScene(f.Write(j)), Error);
+}
+
+}  // namespace
+}  // namespace arreg
