@@ -1,0 +1,294 @@
+#include "ar/eval/evaluation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+
+#include "ar/eval/dice.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/json_reader.h"
+#include "core/log.h"
+#include "core/mesh_io.h"
+
+namespace arreg::eval {
+
+namespace fs = std::filesystem;
+
+void EvalOptions::Check() const {
+  hausdorff.Check();
+  ARREG_CHECK_INPUT(std::isfinite(color_map_max_mm) && color_map_max_mm >= 0.0, "",
+                    "color_map_max_mm", "must be finite and >= 0 (0 = automatic), got ",
+                    color_map_max_mm);
+  ARREG_CHECK_INPUT(color_map_supersampling >= 1 && color_map_supersampling <= 8, "",
+                    "color_map_supersampling", "must be in [1, 8], got ", color_map_supersampling);
+}
+
+namespace {
+
+std::string FramePath(const std::string& dir, const std::string& sub, int frame,
+                      const std::string& ext) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "%06d", frame);
+  return (fs::path(dir) / sub / (name + ext)).string();
+}
+
+// Frame indices of the files NNNNNN<ext> in dir/sub (sorted); empty when the
+// folder does not exist.
+std::vector<int> ListFrames(const std::string& dir, const std::string& sub,
+                            const std::string& ext) {
+  std::vector<int> frames;
+  const fs::path folder = fs::path(dir) / sub;
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) return frames;
+  for (const auto& entry : fs::directory_iterator(folder)) {
+    const std::string name = entry.path().filename().string();
+    if (name.size() != 6 + ext.size() || name.compare(6, ext.size(), ext) != 0) continue;
+    if (!std::all_of(name.begin(), name.begin() + 6, [](char c) { return c >= '0' && c <= '9'; }))
+      continue;
+    frames.push_back(std::stoi(name.substr(0, 6)));
+  }
+  std::sort(frames.begin(), frames.end());
+  return frames;
+}
+
+cv::Mat ReadMask(const std::string& path, const PinholeCamera& camera) {
+  ARREG_CHECK_INPUT(FileExists(path), path, "", "ground-truth mask is missing");
+  cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
+  ARREG_CHECK_INPUT(!image.empty(), path, "", "cannot decode the PNG (corrupt or not an image)");
+  ARREG_CHECK_INPUT(image.depth() == CV_8U, path, "", "mask must be 8-bit");
+  if (image.channels() == 3)
+    cv::cvtColor(image, image, cv::COLOR_BGR2GRAY);
+  else if (image.channels() == 4)
+    cv::cvtColor(image, image, cv::COLOR_BGRA2GRAY);
+  ARREG_CHECK_INPUT(image.channels() == 1, path, "", "mask must have 1, 3 or 4 channels");
+  ARREG_CHECK_INPUT(image.cols == camera.width && image.rows == camera.height, path, "", "mask is ",
+                    image.cols, "x", image.rows, " but the run camera is ", camera.width, "x",
+                    camera.height);
+  cv::Mat binary;
+  cv::threshold(image, binary, 127, 255, cv::THRESH_BINARY);
+  return binary;
+}
+
+SurfaceMesh ReadMesh(const std::string& path) {
+  SurfaceMesh mesh = ReadSurfaceMesh(path);
+  ARREG_CHECK_INPUT(mesh.num_faces() > 0, path, "", "surface has no triangles");
+  for (int v = 0; v < mesh.num_vertices(); ++v)
+    ARREG_CHECK_INPUT(mesh.vertices.row(v).allFinite(), path, internal::Concat("vertex ", v + 1),
+                      "non-finite coordinates");
+  return mesh;
+}
+
+HausdorffFigures Figures(const HausdorffResult& r) {
+  return {r.mean_model_to_gt, r.mean_gt_to_model, r.max_model_to_gt, r.max_gt_to_model, r.max};
+}
+
+std::optional<HausdorffFigures> Aggregate(const std::vector<FrameEvaluation>& frames,
+                                          std::optional<HausdorffFigures> FrameEvaluation::*field) {
+  HausdorffFigures sum;
+  int count = 0;
+  for (const FrameEvaluation& f : frames) {
+    const auto& h = f.*field;
+    if (!h) continue;
+    ++count;
+    sum.mean_model_to_gt += h->mean_model_to_gt;
+    sum.mean_gt_to_model += h->mean_gt_to_model;
+    sum.max_model_to_gt = std::max(sum.max_model_to_gt, h->max_model_to_gt);
+    sum.max_gt_to_model = std::max(sum.max_gt_to_model, h->max_gt_to_model);
+    sum.max = std::max(sum.max, h->max);
+  }
+  if (count == 0) return std::nullopt;
+  sum.mean_model_to_gt /= count;
+  sum.mean_gt_to_model /= count;
+  return sum;
+}
+
+struct RunInfo {
+  PinholeCamera camera;
+  int frames = 0;
+  bool topology = true;
+  bool interrupted = false;
+};
+
+RunInfo ReadRunJson(const std::string& run_dir) {
+  const std::string path = (fs::path(run_dir) / "run.json").string();
+  ARREG_CHECK_INPUT(FileExists(path), path, "", "run summary is missing (is '", run_dir,
+                    "' an `arreg run --out` directory?)");
+  const nlohmann::json root = ParseJsonFile(path);
+  ARREG_CHECK_INPUT(root.is_object(), path, "", "expected a JSON object");
+  RunInfo info;
+  ARREG_CHECK_INPUT(root.contains("camera"), path, "camera", "required key is missing");
+  JsonObjectReader camera_reader(root.at("camera"), path, "camera");
+  info.camera = ReadCameraJson(camera_reader);
+  ARREG_CHECK_INPUT(root.contains("frames"), path, "frames", "required key is missing");
+  ReadJsonValue(root.at("frames"), path, "frames", &info.frames);
+  ARREG_CHECK_INPUT(info.frames >= 1, path, "frames", "must be >= 1, got ", info.frames);
+  if (root.contains("topology") && !root.at("topology").is_null())
+    ReadJsonValue(root.at("topology"), path, "topology", &info.topology);
+  if (root.contains("interrupted") && !root.at("interrupted").is_null())
+    ReadJsonValue(root.at("interrupted"), path, "interrupted", &info.interrupted);
+  return info;
+}
+
+// Per-frame feature errors from frames.jsonl (one object per processed frame).
+void ReadFramesJsonl(const std::string& run_dir, int num_frames,
+                     std::vector<FrameEvaluation>* frames) {
+  const std::string path = (fs::path(run_dir) / "frames.jsonl").string();
+  ARREG_CHECK_INPUT(FileExists(path), path, "", "per-frame log is missing");
+  std::istringstream in(ReadFileToString(path));
+  std::string line;
+  int line_number = 0, count = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    const std::string where = "line " + std::to_string(line_number);
+    nlohmann::json record;
+    try {
+      record = nlohmann::json::parse(line);
+    } catch (const nlohmann::json::parse_error& e) {
+      throw Error(path, where, std::string("invalid JSON: ") + e.what());
+    }
+    ARREG_CHECK_INPUT(record.is_object() && record.contains("frame"), path, where,
+                      "expected an object with a \"frame\" key");
+    int frame = -1;
+    ReadJsonValue(record.at("frame"), path, where + ": frame", &frame);
+    ARREG_CHECK_INPUT(frame == count, path, where, "expected frame ", count, ", got ", frame);
+    ARREG_CHECK_INPUT(count < num_frames, path, where, "more records than run.json's frames (",
+                      num_frames, ")");
+    FrameEvaluation& f = (*frames)[count];
+    for (const auto& [key, target] : {std::pair{"feature_error_mean_mm", &f.feature_error_mean_mm},
+                                      std::pair{"feature_error_max_mm", &f.feature_error_max_mm}}) {
+      if (!record.contains(key) || record.at(key).is_null()) continue;
+      double value = 0.0;
+      ReadJsonValue(record.at(key), path, where + ": " + key, &value);
+      *target = value;
+    }
+    ++count;
+  }
+  ARREG_CHECK_INPUT(count == num_frames, path, "", "has ", count,
+                    " frame records but run.json says frames = ", num_frames);
+}
+
+}  // namespace
+
+RunEvaluation EvaluateRun(const std::string& run_dir, const std::string& gt_dir,
+                          const EvalOptions& options) {
+  options.Check();
+  const RunInfo info = ReadRunJson(run_dir);
+
+  const std::string meta_path = (fs::path(gt_dir) / "meta.json").string();
+  ARREG_CHECK_INPUT(FileExists(meta_path), meta_path, "", "ground-truth metadata is missing (is '",
+                    gt_dir, "' an `arreg synth` output directory?)");
+  const nlohmann::json meta = ParseJsonFile(meta_path);
+  ARREG_CHECK_INPUT(meta.is_object() && meta.contains("frames"), meta_path, "frames",
+                    "required key is missing");
+  int gt_frames = 0;
+  ReadJsonValue(meta.at("frames"), meta_path, "frames", &gt_frames);
+  for (const char* key : {"width", "height"}) {
+    if (!meta.contains(key)) continue;
+    int value = 0;
+    ReadJsonValue(meta.at(key), meta_path, key, &value);
+    const int expected = std::string(key) == "width" ? info.camera.width : info.camera.height;
+    ARREG_CHECK_INPUT(value == expected, meta_path, key, "ground truth has ", key, " ", value,
+                      " but the run camera (", run_dir, "/run.json) has ", expected);
+  }
+  const std::string run_json = (fs::path(run_dir) / "run.json").string();
+  ARREG_CHECK_INPUT(info.frames <= gt_frames, run_json, "frames", "run processed ", info.frames,
+                    " frames but the ground truth (", meta_path, ") has only ", gt_frames);
+  ARREG_CHECK_INPUT(info.frames == gt_frames || info.interrupted, run_json, "frames",
+                    "run processed ", info.frames, " frames but the ground truth (", meta_path,
+                    ") has ", gt_frames, " and the run was not interrupted");
+  if (info.frames < gt_frames)
+    ARREG_LOG_WARNING(run_dir, ": interrupted run, evaluating its ", info.frames, " of ", gt_frames,
+                      " frames");
+
+  RunEvaluation ev;
+  ev.run_dir = run_dir;
+  ev.topology = info.topology;
+  ev.interrupted = info.interrupted;
+  ev.label = info.topology ? "with topology" : "without topology";
+  ev.num_frames = info.frames;
+  ev.camera = info.camera;
+  ev.frames.resize(info.frames);
+  for (int f = 0; f < info.frames; ++f) ev.frames[f].frame = f;
+  ReadFramesJsonl(run_dir, info.frames, &ev.frames);
+
+  std::vector<int> surface_frames;
+  for (int f : ListFrames(run_dir, "surface", ".obj"))
+    if (f < info.frames) surface_frames.push_back(f);
+  ARREG_CHECK_INPUT(!surface_frames.empty(), (fs::path(run_dir) / "surface").string(), "",
+                    "the run saved no surface/NNNNNN.obj within its ", info.frames, " frames");
+  for (int f : ListFrames(gt_dir, "surface", ".obj"))
+    if (f < info.frames && !std::binary_search(surface_frames.begin(), surface_frames.end(), f))
+      ARREG_LOG_WARNING(run_dir, ": no surface at frame ", f,
+                        " where the ground truth has one; that frame is not evaluated");
+
+  int last_gt_surface_frame = -1;
+  double dice_sum = 0.0;
+  for (int f : surface_frames) {
+    FrameEvaluation& fe = ev.frames[f];
+    const SurfaceMesh model = ReadMesh(FramePath(run_dir, "surface", f, ".obj"));
+    const cv::Mat truth = ReadMask(FramePath(gt_dir, "masks", f, ".png"), info.camera);
+    fe.dice = ComputeDice(RenderSilhouette(info.camera, model), truth).dice;
+    dice_sum += *fe.dice;
+    ev.dice_final = *fe.dice;
+
+    const std::string gt_surface = FramePath(gt_dir, "surface", f, ".obj");
+    if (!FileExists(gt_surface)) continue;
+    fe.surface = Figures(ComputeHausdorff(model, ReadMesh(gt_surface), options.hausdorff));
+    last_gt_surface_frame = f;
+    const std::string gt_internal = FramePath(gt_dir, "internal", f, ".obj");
+    const std::string run_internal = FramePath(run_dir, "internal", f, ".obj");
+    if (FileExists(gt_internal) && FileExists(run_internal))
+      fe.internal = Figures(
+          ComputeHausdorff(ReadMesh(run_internal), ReadMesh(gt_internal), options.hausdorff));
+  }
+  ev.dice_mean = dice_sum / surface_frames.size();
+  ev.surface = Aggregate(ev.frames, &FrameEvaluation::surface);
+  ev.internal = Aggregate(ev.frames, &FrameEvaluation::internal);
+
+  double feature_sum = 0.0;
+  int feature_count = 0;
+  for (const FrameEvaluation& f : ev.frames) {
+    if (f.feature_error_mean_mm) {
+      feature_sum += *f.feature_error_mean_mm;
+      ++feature_count;
+    }
+    if (f.feature_error_max_mm)
+      ev.feature_error_max_mm =
+          std::max(ev.feature_error_max_mm.value_or(0.0), *f.feature_error_max_mm);
+  }
+  if (feature_count > 0) ev.feature_error_mean_mm = feature_sum / feature_count;
+
+  // Colour maps at the last frame with a ground-truth surface: per-vertex
+  // distances of each surface to the other one (both directions).
+  if (options.color_maps && last_gt_surface_frame >= 0) {
+    const int f = last_gt_surface_frame;
+    for (const char* kind : {"surface", "internal"}) {
+      const std::string model_path = FramePath(run_dir, kind, f, ".obj");
+      const std::string gt_path = FramePath(gt_dir, kind, f, ".obj");
+      if (!FileExists(model_path) || !FileExists(gt_path)) continue;
+      const SurfaceMesh model = ReadMesh(model_path);
+      const SurfaceMesh truth = ReadMesh(gt_path);
+      HausdorffOptions vertex_only = options.hausdorff;
+      vertex_only.sampling.max_random_samples = vertex_only.sampling.min_random_samples = 0;
+      const HausdorffResult h = ComputeHausdorff(model, truth, vertex_only);
+      const auto& figures =
+          std::string(kind) == "surface" ? ev.frames[f].surface : ev.frames[f].internal;
+      double scale = options.color_map_max_mm;
+      if (scale <= 0.0) scale = figures ? figures->max : h.max;
+      if (!(scale > 0.0)) scale = 1.0;  // identical surfaces: any scale shows zero
+      ev.distance_fields.push_back(
+          {std::string(kind) + "_model_to_gt", f, model, h.model_vertex_distances, scale});
+      ev.distance_fields.push_back(
+          {std::string(kind) + "_gt_to_model", f, truth, h.gt_vertex_distances, scale});
+    }
+  }
+  return ev;
+}
+
+}  // namespace arreg::eval

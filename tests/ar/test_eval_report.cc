@@ -1,0 +1,185 @@
+// End-to-end `arreg eval` on hand-built run and ground-truth folders whose
+// metrics are known in closed form, plus the input errors it must name.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+
+#include "ar/eval/color_map.h"
+#include "ar/eval/evaluation.h"
+#include "core/camera.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/json_reader.h"
+#include "test_eval_fixtures.h"
+#include "test_util.h"
+
+namespace arreg::eval {
+namespace {
+
+using namespace fixtures;  // test_eval_fixtures.h
+
+EvalOptions FastOptions() {
+  EvalOptions o;
+  o.hausdorff.sampling.min_random_samples = 2000;
+  return o;
+}
+
+TEST(EvalReport, MetricsOfAHandBuiltRunMatchTheClosedForm) {
+  const Folders f = MakeFolders("eval_report_metrics");
+  const RunEvaluation ev = EvaluateRun(f.run.string(), f.gt.string(), FastOptions());
+  ASSERT_EQ(ev.frames.size(), 3u);
+  EXPECT_DOUBLE_EQ(*ev.frames[0].dice, 1.0);
+  EXPECT_DOUBLE_EQ(*ev.frames[1].dice, 0.75);
+  EXPECT_DOUBLE_EQ(*ev.frames[2].dice, 6.0 / 7.0);
+  EXPECT_DOUBLE_EQ(ev.dice_final, 6.0 / 7.0);
+  EXPECT_NEAR(ev.dice_mean, (1.0 + 0.75 + 6.0 / 7.0) / 3.0, 1e-15);
+
+  EXPECT_FALSE(ev.frames[1].surface.has_value());
+  ASSERT_TRUE(ev.frames[2].surface.has_value());
+  EXPECT_NEAR(ev.frames[0].surface->max, 0.0, 1e-12);
+  EXPECT_NEAR(ev.frames[2].surface->mean_model_to_gt, 3.0, 1e-9);
+  EXPECT_NEAR(ev.frames[2].surface->max_gt_to_model, 3.0, 1e-9);
+  ASSERT_TRUE(ev.surface.has_value());
+  EXPECT_NEAR(ev.surface->mean_model_to_gt, 1.5, 1e-9);  // mean over frames 0 and 2
+  EXPECT_NEAR(ev.surface->mean_gt_to_model, 1.5, 1e-9);
+  EXPECT_NEAR(ev.surface->max_model_to_gt, 3.0, 1e-9);  // largest over frames
+  EXPECT_NEAR(ev.surface->max, 3.0, 1e-9);
+  ASSERT_TRUE(ev.internal.has_value());
+  EXPECT_NEAR(ev.internal->mean_model_to_gt, 0.25, 1e-9);
+  EXPECT_NEAR(ev.internal->max, 0.5, 1e-9);
+
+  EXPECT_DOUBLE_EQ(*ev.feature_error_mean_mm, 1.5);  // frame 2 logged null
+  EXPECT_DOUBLE_EQ(*ev.feature_error_max_mm, 4.0);
+  EXPECT_FALSE(ev.frames[2].feature_error_mean_mm.has_value());
+
+  // Colour maps at frame 2, both directions, surface and internal structures.
+  ASSERT_EQ(ev.distance_fields.size(), 4u);
+  EXPECT_EQ(ev.distance_fields[0].name, "surface_model_to_gt");
+  EXPECT_EQ(ev.distance_fields[0].frame, 2);
+  EXPECT_NEAR(ev.distance_fields[0].distances.maxCoeff(), 3.0, 1e-9);
+  EXPECT_NEAR(ev.distance_fields[0].scale_max_mm, 3.0, 1e-9);
+  EXPECT_EQ(ev.distance_fields[2].mesh.num_faces(), 4);  // two objects of the internal OBJ
+}
+
+TEST(EvalReport, WritesJsonCsvHtmlAndColourMaps) {
+  const Folders f = MakeFolders("eval_report_files");
+  const EvalOptions o = FastOptions();
+  const RunEvaluation run = EvaluateRun(f.run.string(), f.gt.string(), o);
+  const RunEvaluation base = EvaluateRun(f.baseline.string(), f.gt.string(), o);
+  WriteEvalReport(f.out.string(), f.gt.string(), run, &base, o);
+
+  const nlohmann::json report = ParseJsonFile((f.out / "report.json").string());
+  EXPECT_DOUBLE_EQ(report.at("dice_final").get<double>(), 6.0 / 7.0);
+  for (const char* key : {"hausdorff_surface", "hausdorff_internal"})
+    for (const char* part :
+         {"mean_model_to_gt", "mean_gt_to_model", "max_model_to_gt", "max_gt_to_model", "max"})
+      EXPECT_TRUE(report.at(key).at(part).is_number()) << key << "." << part;
+  EXPECT_NEAR(report.at("hausdorff_surface").at("max").get<double>(), 3.0, 1e-9);
+  EXPECT_DOUBLE_EQ(report.at("feature_error_mm").at("mean").get<double>(), 1.5);
+  EXPECT_DOUBLE_EQ(report.at("feature_error_mm").at("max").get<double>(), 4.0);
+  ASSERT_EQ(report.at("frames").size(), 3u);
+  EXPECT_DOUBLE_EQ(report.at("frames")[1].at("dice").get<double>(), 0.75);
+  EXPECT_TRUE(report.at("frames")[1].at("hausdorff_surface").is_null());
+  EXPECT_FALSE(report.at("baseline").at("topology").get<bool>());
+
+  std::istringstream csv(ReadFileToString((f.out / "report.csv").string()));
+  std::string line;
+  int rows = 0;
+  std::getline(csv, line);
+  EXPECT_EQ(line.rfind("run,frame,dice,hausdorff_surface_mean_model_to_gt", 0), 0u);
+  while (std::getline(csv, line)) {
+    ++rows;
+    EXPECT_EQ(std::count(line.begin(), line.end(), ','), 14) << line;
+  }
+  EXPECT_EQ(rows, 6);  // 3 frames x (run, baseline)
+
+  const std::string html = ReadFileToString((f.out / "report.html").string());
+  EXPECT_NE(html.find("<svg class=\"plot\" id=\"plot-dice\""), std::string::npos);
+  EXPECT_NE(html.find("with topology"), std::string::npos);
+  EXPECT_NE(html.find("without topology"), std::string::npos);
+  EXPECT_NE(html.find("data:image/png;base64,"), std::string::npos);
+  EXPECT_EQ(html.find("<script"), std::string::npos);
+  EXPECT_EQ(html.find("http://"),
+            html.find("http://www.w3.org/2000/svg"));  // only the SVG namespace
+
+  // Colour-map mesh: vertices carry the colour of their distance (3 mm = top of the scale).
+  const std::string obj =
+      ReadFileToString((f.out / "colormaps" / "surface_model_to_gt_000002.obj").string());
+  std::istringstream in(obj);
+  int coloured_vertices = 0;
+  const Eigen::Vector3f top = ViridisColor(1.0);
+  while (std::getline(in, line)) {
+    if (line.rfind("v ", 0) != 0) continue;
+    std::istringstream v(line.substr(2));
+    double x, y, z, r, g, b;
+    ASSERT_TRUE(v >> x >> y >> z >> r >> g >> b) << line;
+    EXPECT_NEAR(r, top[0], 1e-3);
+    EXPECT_NEAR(g, top[1], 1e-3);
+    EXPECT_NEAR(b, top[2], 1e-3);
+    ++coloured_vertices;
+  }
+  EXPECT_EQ(coloured_vertices, 4);
+  const cv::Mat image =
+      cv::imread((f.out / "colormaps" / "surface_model_to_gt_000002.png").string());
+  ASSERT_FALSE(image.empty());
+  EXPECT_EQ(image.rows, 120);
+  EXPECT_GT(image.cols, 160);  // view plus legend
+  EXPECT_TRUE(fs::exists(f.out / "colormaps" / "baseline_internal_gt_to_model_000002.png"));
+}
+
+TEST(EvalReport, ErrorsNameTheOffendingFile) {
+  const Folders f = MakeFolders("eval_report_errors");
+  const auto expect_error_naming = [&](const fs::path& run, const std::string& needle) {
+    try {
+      EvaluateRun(run.string(), f.gt.string(), FastOptions());
+      ADD_FAILURE() << "no error, expected one naming " << needle;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  expect_error_naming(f.root / "missing", "run.json");
+
+  // frames.jsonl shorter than run.json's frame count.
+  const fs::path short_log = f.root / "short_log";
+  MakeRun(short_log, true);
+  WriteText(short_log / "frames.jsonl", "{\"frame\": 0}\n{\"frame\": 1}\n");
+  expect_error_naming(short_log, "frames.jsonl");
+
+  // More frames than the ground truth has.
+  const fs::path too_long = f.root / "too_long";
+  MakeRun(too_long, true);
+  nlohmann::json j = ParseJsonFile((too_long / "run.json").string());
+  j["frames"] = 4;
+  WriteText(too_long / "run.json", j.dump());
+  expect_error_naming(too_long, "run.json");
+
+  // A corrupt mask.
+  WriteText(f.gt / "masks" / (Name(1) + ".png"), "not a png");
+  expect_error_naming(f.run, "masks/000001.png");
+  WriteMask(f.gt / "masks" / (Name(1) + ".png"), cv::Rect(70, 40, 40, 40));
+
+  // A mask of the wrong size.
+  cv::imwrite((f.gt / "masks" / (Name(2) + ".png")).string(), cv::Mat::zeros(60, 80, CV_8U));
+  expect_error_naming(f.run, "masks/000002.png");
+}
+
+TEST(EvalReport, InterruptedRunIsEvaluatedOnItsFrames) {
+  const Folders f = MakeFolders("eval_report_interrupted");
+  nlohmann::json j = ParseJsonFile((f.run / "run.json").string());
+  j["frames"] = 2;
+  WriteText(f.run / "run.json", j.dump());
+  WriteText(f.run / "frames.jsonl", "{\"frame\": 0}\n{\"frame\": 1}\n");
+  EXPECT_THROW(EvaluateRun(f.run.string(), f.gt.string(), FastOptions()), Error);
+  j["interrupted"] = true;
+  WriteText(f.run / "run.json", j.dump());
+  const RunEvaluation ev = EvaluateRun(f.run.string(), f.gt.string(), FastOptions());
+  EXPECT_EQ(ev.frames.size(), 2u);
+  EXPECT_DOUBLE_EQ(ev.dice_final, 0.75);
+  EXPECT_FALSE(ev.feature_error_mean_mm.has_value());
+}
+
+}  // namespace
+}  // namespace arreg::eval
