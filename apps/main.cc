@@ -19,6 +19,7 @@ struct Command {
 // Keep in step with README.md ("Commands").
 constexpr Command kCommands[] = {
     {"bench", arreg::cli::RunBench, "speed benchmarks that print figures and write JSON"},
+    {"eval", arreg::cli::RunEval, "accuracy against ground truth: Dice, Hausdorff, feature error"},
 };
 
 void PrintUsage(std::FILE* out) {
