@@ -1,0 +1,54 @@
+// Corotational linear elasticity of all tetrahedra of a MechanicalState as
+// one energy term: per-element rotations, energy, forces and warped stiffness.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "mechanics/energy.h"
+
+namespace arreg::mechanics {
+
+struct CorotationalOptions {
+  RotationMethod rotation_method = RotationMethod::kPolar;  // default polar (Mueller iteration)
+  int polar_max_iterations = 20;   // cap of the polar iteration per element; default 20
+  double polar_tolerance = 1e-12;  // stop when the rotation update angle (rad) is below; 1e-12
+  void Check() const;
+};
+
+// Energy E(x) = sum_e V_e (mu eps_e:eps_e + lambda/2 tr(eps_e)^2) with
+// eps_e = sym(R_e^T F_e(x) - I) and the rotations R_e frozen at the last
+// Update(). Gradient and Hessian are exact derivatives of this frozen-rotation
+// energy; the Hessian R K_e R^T is the stiffness-warping approximation of the
+// true Hessian (it neglects dR/dx). For the polar rotation the gradient also
+// equals the exact gradient of the energy with R_e = R_e(x) (R^T F is then
+// symmetric and commutes with the stress), which the tests check.
+class CorotationalElasticity : public EnergyTerm {
+ public:
+  explicit CorotationalElasticity(const CorotationalOptions& options = {});
+  std::string name() const override { return "corotational-elasticity"; }
+
+  // Recomputes R_e for every element from x (warm-started from the last ones).
+  void Update(const MechanicalState& state, const RowMatX3d& x) override;
+  double Value(const MechanicalState& state, const RowMatX3d& x) const override;
+  void AddGradient(const MechanicalState& state, const RowMatX3d& x,
+                   RowMatX3d* gradient) const override;
+  void AddHessian(const MechanicalState& state, const RowMatX3d& x, double scale,
+                  SystemMatrix* hessian) const override;
+
+  const std::vector<Eigen::Matrix3d>& rotations() const { return rotations_; }
+  // Elements with det F <= 0 at the last Update().
+  int num_inverted() const { return num_inverted_; }
+  // Mean polar iterations per element at the last Update().
+  double mean_rotation_iterations() const { return mean_iterations_; }
+  const CorotationalOptions& options() const { return options_; }
+
+ private:
+  CorotationalOptions options_;
+  std::vector<Eigen::Matrix3d> rotations_;
+  std::vector<Eigen::Matrix<double, 4, 3>> rotated_gradients_;  // rows R g_a
+  int num_inverted_ = 0;
+  double mean_iterations_ = 0.0;
+};
+
+}  // namespace arreg::mechanics

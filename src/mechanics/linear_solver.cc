@@ -1,0 +1,175 @@
+#include "mechanics/linear_solver.h"
+
+#include <Eigen/IterativeLinearSolvers>
+#include <Eigen/OrderingMethods>
+#include <cmath>
+
+#include "core/error.h"
+#include "mechanics/cholmod_solver.h"
+
+namespace arreg::mechanics {
+
+LinearSolverType ParseLinearSolverType(const std::string& name) {
+  if (name == "cg") return LinearSolverType::kConjugateGradient;
+  if (name == "cholmod") return LinearSolverType::kCholmod;
+  throw Error("", "linear solver", "unknown '" + name + "' (expected cg or cholmod)");
+}
+
+const char* LinearSolverTypeName(LinearSolverType type) {
+  return type == LinearSolverType::kConjugateGradient ? "cg" : "cholmod";
+}
+
+Preconditioner ParsePreconditioner(const std::string& name) {
+  if (name == "none") return Preconditioner::kNone;
+  if (name == "jacobi") return Preconditioner::kJacobi;
+  if (name == "ichol") return Preconditioner::kIncompleteCholesky;
+  throw Error("", "preconditioner", "unknown '" + name + "' (expected none, jacobi or ichol)");
+}
+
+const char* LinearSolverStatusName(LinearSolverStatus status) {
+  switch (status) {
+    case LinearSolverStatus::kConverged:
+      return "converged";
+    case LinearSolverStatus::kMaxIterations:
+      return "max-iterations";
+    case LinearSolverStatus::kIndefinite:
+      return "indefinite";
+    case LinearSolverStatus::kNumericalFailure:
+      return "numerical-failure";
+  }
+  return "?";
+}
+
+void LinearSolverOptions::Check() const {
+  ARREG_CHECK_INPUT(std::isfinite(relative_tolerance) && relative_tolerance > 0, "",
+                    "linear_solver.relative_tolerance", "must be > 0, got ", relative_tolerance);
+  ARREG_CHECK_INPUT(max_iterations >= 1, "", "linear_solver.max_iterations", "must be >= 1, got ",
+                    max_iterations);
+}
+
+namespace {
+
+// Preconditioned conjugate gradient (Saad, Iterative Methods, alg. 9.1).
+class ConjugateGradientSolver : public LinearSolver {
+ public:
+  explicit ConjugateGradientSolver(const LinearSolverOptions& options) : options_(options) {}
+  std::string name() const override { return "cg"; }
+  void PatternChanged() override {
+    pattern_valid_ = false;
+    values_valid_ = false;
+  }
+  void ValuesChanged() override { values_valid_ = false; }
+
+  LinearSolverSummary Solve(const SparseMatrixd& A, const Eigen::VectorXd& b,
+                            Eigen::VectorXd* x) override {
+    LinearSolverSummary summary;
+    const int n = static_cast<int>(b.size());
+    ARREG_ASSERT(A.rows() == n && A.cols() == n, "");
+    if (!options_.warm_start || x->size() != n) x->setZero(n);
+    if (!values_valid_ || !pattern_valid_) {
+      if (!SetUpPreconditioner(A, &summary)) return summary;
+      pattern_valid_ = values_valid_ = true;
+    }
+    const double b_norm = b.norm();
+    if (b_norm == 0.0) {
+      x->setZero();
+      return summary;
+    }
+    r_.noalias() = b - A * (*x);
+    Precondition(r_, &z_);
+    p_ = z_;
+    double rz = r_.dot(z_);
+    const double threshold = options_.relative_tolerance * b_norm;
+    double r_norm = r_.norm();
+    int it = 0;
+    while (r_norm > threshold && it < options_.max_iterations) {
+      q_.noalias() = A * p_;
+      const double curvature = p_.dot(q_);
+      if (!(curvature > 0.0)) {
+        summary.status = std::isfinite(curvature) ? LinearSolverStatus::kIndefinite
+                                                  : LinearSolverStatus::kNumericalFailure;
+        summary.message = "non-positive curvature p^T A p in CG";
+        break;
+      }
+      const double alpha = rz / curvature;
+      x->noalias() += alpha * p_;
+      r_.noalias() -= alpha * q_;
+      r_norm = r_.norm();
+      ++it;
+      if (r_norm <= threshold) break;
+      Precondition(r_, &z_);
+      const double rz_new = r_.dot(z_);
+      p_ = z_ + (rz_new / rz) * p_;
+      rz = rz_new;
+    }
+    summary.iterations = it;
+    summary.relative_residual = r_norm / b_norm;
+    if (summary.status == LinearSolverStatus::kConverged && r_norm > threshold)
+      summary.status = std::isfinite(r_norm) ? LinearSolverStatus::kMaxIterations
+                                             : LinearSolverStatus::kNumericalFailure;
+    return summary;
+  }
+
+ private:
+  bool SetUpPreconditioner(const SparseMatrixd& A, LinearSolverSummary* summary) {
+    switch (options_.preconditioner) {
+      case Preconditioner::kNone:
+        break;
+      case Preconditioner::kJacobi: {
+        inverse_diagonal_ = A.diagonal();
+        if ((inverse_diagonal_.array() <= 0.0).any()) {
+          summary->status = LinearSolverStatus::kIndefinite;
+          summary->message = "non-positive diagonal entry";
+          return false;
+        }
+        inverse_diagonal_ = inverse_diagonal_.cwiseInverse();
+        break;
+      }
+      case Preconditioner::kIncompleteCholesky: {
+        if (!pattern_valid_) ichol_.analyzePattern(A);
+        ichol_.factorize(A);
+        if (ichol_.info() != Eigen::Success) {
+          summary->status = LinearSolverStatus::kIndefinite;
+          summary->message = "incomplete Cholesky failed";
+          return false;
+        }
+        break;
+      }
+    }
+    return true;
+  }
+
+  void Precondition(const Eigen::VectorXd& r, Eigen::VectorXd* z) {
+    switch (options_.preconditioner) {
+      case Preconditioner::kNone:
+        *z = r;
+        break;
+      case Preconditioner::kJacobi:
+        z->noalias() = inverse_diagonal_.cwiseProduct(r);
+        break;
+      case Preconditioner::kIncompleteCholesky:
+        *z = ichol_.solve(r);
+        break;
+    }
+  }
+
+  LinearSolverOptions options_;
+  bool pattern_valid_ = false, values_valid_ = false;
+  Eigen::VectorXd inverse_diagonal_, r_, z_, p_, q_;
+  Eigen::IncompleteCholesky<double, Eigen::Lower, Eigen::AMDOrdering<int>> ichol_;
+};
+
+}  // namespace
+
+std::unique_ptr<LinearSolver> LinearSolver::Create(const LinearSolverOptions& options) {
+  options.Check();
+  switch (options.type) {
+    case LinearSolverType::kConjugateGradient:
+      return std::make_unique<ConjugateGradientSolver>(options);
+    case LinearSolverType::kCholmod:
+      return MakeCholmodSolver(options);
+  }
+  return nullptr;
+}
+
+}  // namespace arreg::mechanics

@@ -1,0 +1,67 @@
+// Sparse symmetric positive-definite linear solvers behind one interface:
+// preconditioned conjugate gradient and CHOLMOD Cholesky, made by a factory.
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <string>
+
+#include "mechanics/system_matrix.h"
+
+namespace arreg::mechanics {
+
+enum class LinearSolverType { kConjugateGradient, kCholmod };
+enum class Preconditioner { kNone, kJacobi, kIncompleteCholesky };
+enum class CholmodFactorization { kSupernodal, kSimplicial, kAuto };
+
+LinearSolverType ParseLinearSolverType(const std::string& name);  // "cg", "cholmod"
+const char* LinearSolverTypeName(LinearSolverType type);
+Preconditioner ParsePreconditioner(const std::string& name);  // "none", "jacobi", "ichol"
+
+struct LinearSolverOptions {
+  LinearSolverType type = LinearSolverType::kCholmod;  // default CHOLMOD
+  // CG only:
+  Preconditioner preconditioner = Preconditioner::kJacobi;  // default Jacobi
+  double relative_tolerance = 1e-8;  // stop when |b - A x| <= tol |b|; default 1e-8
+  int max_iterations = 1000;         // iteration cap; default 1000
+  bool warm_start = true;            // start from the caller's x (last solution); default true
+  // CHOLMOD only:
+  CholmodFactorization factorization = CholmodFactorization::kSupernodal;  // default supernodal
+  void Check() const;
+};
+
+enum class LinearSolverStatus {
+  kConverged,        // CG reached the tolerance / Cholesky succeeded
+  kMaxIterations,    // CG hit the iteration cap (x holds the last iterate)
+  kIndefinite,       // matrix not positive definite (CG curvature <= 0, Cholesky pivot <= 0)
+  kNumericalFailure  // NaN or other failure
+};
+const char* LinearSolverStatusName(LinearSolverStatus status);
+
+struct LinearSolverSummary {
+  LinearSolverStatus status = LinearSolverStatus::kConverged;
+  int iterations = 0;                  // CG iterations (0 for Cholesky)
+  double relative_residual = 0.0;      // |b - A x| / |b| (CG)
+  bool symbolic_analysis = false;      // Cholesky: symbolic analysis redone in this call
+  bool numeric_factorization = false;  // Cholesky: numeric refactorisation done in this call
+  std::string message;
+};
+
+class LinearSolver {
+ public:
+  virtual ~LinearSolver() = default;
+  static std::unique_ptr<LinearSolver> Create(const LinearSolverOptions& options);
+
+  // Declares that the pattern of the matrix changed (next Solve redoes the
+  // symbolic analysis / preconditioner structure).
+  virtual void PatternChanged() = 0;
+  // Declares that the values changed since the last Solve (refactorise).
+  virtual void ValuesChanged() = 0;
+  // Solves A x = b for symmetric positive-definite A (full symmetric storage).
+  // With warm_start, *x is the initial guess (its size must match b; otherwise zero).
+  virtual LinearSolverSummary Solve(const SparseMatrixd& A, const Eigen::VectorXd& b,
+                                    Eigen::VectorXd* x) = 0;
+  virtual std::string name() const = 0;
+};
+
+}  // namespace arreg::mechanics

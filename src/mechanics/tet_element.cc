@@ -1,0 +1,191 @@
+#include "mechanics/tet_element.h"
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <Eigen/SVD>
+#include <cmath>
+
+#include "core/error.h"
+#include "mechanics/units.h"
+
+namespace arreg::mechanics {
+
+void Material::Check() const {
+  ARREG_CHECK_INPUT(std::isfinite(youngs_modulus_pa) && youngs_modulus_pa > 0, "",
+                    "material.youngs_modulus_pa", "must be positive and finite, got ",
+                    youngs_modulus_pa);
+  ARREG_CHECK_INPUT(std::isfinite(poisson_ratio) && poisson_ratio > -1.0 && poisson_ratio < 0.5, "",
+                    "material.poisson_ratio", "must lie in (-1, 0.5), got ", poisson_ratio);
+  ARREG_CHECK_INPUT(std::isfinite(density_kg_per_m3) && density_kg_per_m3 > 0, "",
+                    "material.density_kg_per_m3", "must be positive and finite, got ",
+                    density_kg_per_m3);
+}
+
+double Material::LameLambdaKpa() const {
+  const double e = youngs_modulus_pa * kPaToInternalStress;
+  return e * poisson_ratio / ((1.0 + poisson_ratio) * (1.0 - 2.0 * poisson_ratio));
+}
+
+double Material::LameMuKpa() const {
+  return youngs_modulus_pa * kPaToInternalStress / (2.0 * (1.0 + poisson_ratio));
+}
+
+double Material::DensityKgPerMm3() const { return density_kg_per_m3 * kKgPerM3ToInternalDensity; }
+
+RotationMethod ParseRotationMethod(const std::string& name) {
+  if (name == "polar") return RotationMethod::kPolar;
+  if (name == "polar-svd") return RotationMethod::kPolarSvd;
+  if (name == "qr") return RotationMethod::kQr;
+  throw Error("", "rotation method", "unknown '" + name + "' (expected polar, polar-svd or qr)");
+}
+
+const char* RotationMethodName(RotationMethod method) {
+  switch (method) {
+    case RotationMethod::kPolar:
+      return "polar";
+    case RotationMethod::kPolarSvd:
+      return "polar-svd";
+    case RotationMethod::kQr:
+      return "qr";
+  }
+  return "?";
+}
+
+bool ComputeTetRestData(const Eigen::Vector3d& x0, const Eigen::Vector3d& x1,
+                        const Eigen::Vector3d& x2, const Eigen::Vector3d& x3,
+                        const Material& material, TetRestData* out) {
+  Eigen::Matrix3d dm;  // columns: rest edge vectors from vertex 0
+  dm.col(0) = x1 - x0;
+  dm.col(1) = x2 - x0;
+  dm.col(2) = x3 - x0;
+  const double det = dm.determinant();
+  out->volume_mm3 = det / 6.0;
+  if (!(det > 0.0)) return false;
+  // Rows of Dm^{-1} are grad N_1..3; grad N_0 = -(sum of the others).
+  const Eigen::Matrix3d dm_inv = dm.inverse();
+  out->shape_gradients.bottomRows<3>() = dm_inv;
+  out->shape_gradients.row(0) = -dm_inv.colwise().sum();
+  out->lambda_kpa = material.LameLambdaKpa();
+  out->mu_kpa = material.LameMuKpa();
+  out->mass_kg = material.DensityKgPerMm3() * out->volume_mm3;
+  return true;
+}
+
+Eigen::Matrix3d DeformationGradient(const TetRestData& rest, const Eigen::Matrix<double, 4, 3>& x) {
+  return x.transpose() * rest.shape_gradients;
+}
+
+namespace {
+
+void PolarSvd(const Eigen::Matrix3d& F, Eigen::Matrix3d* rotation) {
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d U = svd.matrixU();
+  const Eigen::Matrix3d V = svd.matrixV();
+  // Keep a proper rotation for inverted elements: flip the axis of the
+  // smallest singular value (Irving et al. 2004).
+  if ((U * V.transpose()).determinant() < 0.0) U.col(2) *= -1.0;
+  *rotation = U * V.transpose();
+}
+
+int PolarMueller(const Eigen::Matrix3d& F, Eigen::Matrix3d* rotation, int max_iterations,
+                 double tolerance) {
+  Eigen::Quaterniond q(*rotation);
+  q.normalize();
+  int iteration = 0;
+  for (; iteration < max_iterations; ++iteration) {
+    const Eigen::Matrix3d R = q.toRotationMatrix();
+    const Eigen::Vector3d torque =
+        R.col(0).cross(F.col(0)) + R.col(1).cross(F.col(1)) + R.col(2).cross(F.col(2));
+    const double alignment =
+        std::abs(R.col(0).dot(F.col(0)) + R.col(1).dot(F.col(1)) + R.col(2).dot(F.col(2)));
+    const Eigen::Vector3d omega = torque / (alignment + 1e-12);
+    const double angle = omega.norm();
+    if (!(angle > tolerance)) break;  // also stops on NaN input
+    q = Eigen::Quaterniond(Eigen::AngleAxisd(angle, omega / angle)) * q;
+    q.normalize();
+  }
+  if (iteration == max_iterations) {
+    // Not converged (a start far from the answer, or a near-singular F): the
+    // SVD answer is exact and costs about ten iterations.
+    PolarSvd(F, rotation);
+    return iteration;
+  }
+  *rotation = q.toRotationMatrix();
+  return iteration;
+}
+
+void GramSchmidt(const Eigen::Matrix3d& F, Eigen::Matrix3d* rotation) {
+  Eigen::Vector3d r0 = F.col(0);
+  const double n0 = r0.norm();
+  if (!(n0 > 0.0)) {
+    rotation->setIdentity();
+    return;
+  }
+  r0 /= n0;
+  Eigen::Vector3d r1 = F.col(1) - r0.dot(F.col(1)) * r0;
+  double n1 = r1.norm();
+  if (!(n1 > 1e-300)) {  // degenerate: any unit vector orthogonal to r0
+    r1 = r0.unitOrthogonal();
+    n1 = 1.0;
+  }
+  r1 /= n1;
+  rotation->col(0) = r0;
+  rotation->col(1) = r1;
+  rotation->col(2) = r0.cross(r1);
+}
+
+}  // namespace
+
+int ExtractRotation(const Eigen::Matrix3d& F, RotationMethod method, Eigen::Matrix3d* rotation,
+                    int max_iterations, double tolerance) {
+  switch (method) {
+    case RotationMethod::kPolar:
+      return PolarMueller(F, rotation, max_iterations, tolerance);
+    case RotationMethod::kPolarSvd:
+      PolarSvd(F, rotation);
+      return 1;
+    case RotationMethod::kQr:
+      GramSchmidt(F, rotation);
+      return 1;
+  }
+  return 0;
+}
+
+namespace {
+// Small strain of the unrotated element: eps = sym(R^T F - I).
+Eigen::Matrix3d CorotatedStrain(const TetRestData& rest, const Eigen::Matrix3d& R,
+                                const Eigen::Matrix<double, 4, 3>& x) {
+  const Eigen::Matrix3d G = R.transpose() * DeformationGradient(rest, x);
+  Eigen::Matrix3d eps = 0.5 * (G + G.transpose());
+  eps.diagonal().array() -= 1.0;
+  return eps;
+}
+}  // namespace
+
+double CorotationalEnergy(const TetRestData& rest, const Eigen::Matrix3d& R,
+                          const Eigen::Matrix<double, 4, 3>& x) {
+  const Eigen::Matrix3d eps = CorotatedStrain(rest, R, x);
+  const double tr = eps.trace();
+  return rest.volume_mm3 * (rest.mu_kpa * eps.squaredNorm() + 0.5 * rest.lambda_kpa * tr * tr);
+}
+
+void AddCorotationalGradient(const TetRestData& rest, const Eigen::Matrix3d& R,
+                             const Eigen::Matrix<double, 4, 3>& x,
+                             Eigen::Matrix<double, 4, 3>* gradient) {
+  const Eigen::Matrix3d eps = CorotatedStrain(rest, R, x);
+  Eigen::Matrix3d sigma = 2.0 * rest.mu_kpa * eps;
+  sigma.diagonal().array() += rest.lambda_kpa * eps.trace();
+  // dE/dx_a = V R sigma g_a; as rows: V g_a^T sigma R^T (sigma symmetric).
+  const Eigen::Matrix3d p = rest.volume_mm3 * (R * sigma).transpose();
+  gradient->noalias() += rest.shape_gradients * p;
+}
+
+Eigen::Matrix<double, 12, 12> RestStiffnessMatrix(const TetRestData& rest) {
+  Eigen::Matrix<double, 12, 12> k;
+  for (int a = 0; a < 4; ++a)
+    for (int b = 0; b < 4; ++b)
+      k.block<3, 3>(3 * a, 3 * b) = WarpedStiffnessBlock(rest, rest.shape_gradients, a, b);
+  return k;
+}
+
+}  // namespace arreg::mechanics

@@ -1,0 +1,97 @@
+// Element kernels of the linear tetrahedron with corotational linear
+// elasticity: rest-state data, rotation extraction, energy, force and stiffness.
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+
+namespace arreg::mechanics {
+
+// Isotropic linear-elastic material of one element (SI units at the interface).
+struct Material {
+  double youngs_modulus_pa = 3000.0;  // E in Pa; default 3 kPa (soft tissue)
+  double poisson_ratio = 0.45;        // nu in (-1, 0.5); default 0.45
+  double density_kg_per_m3 = 1000.0;  // rho in kg/m^3; default 1000 (water)
+
+  // Throws arreg::Error naming the field when a value is out of range.
+  void Check() const;
+  // Lame parameters in internal stress units (kPa).
+  double LameLambdaKpa() const;
+  double LameMuKpa() const;
+  // Density in kg/mm^3.
+  double DensityKgPerMm3() const;
+};
+
+// How the element rotation R is extracted from the deformation gradient F.
+enum class RotationMethod {
+  // Rotation of the polar decomposition F = R S (S symmetric), computed with the
+  // quaternion iteration of Mueller et al. 2016 warm-started from the previous
+  // rotation; always a proper rotation, also for inverted elements.
+  kPolar,
+  // Polar rotation from a 3x3 SVD (F = U S V^T, R = U diag(1,1,det(UV^T)) V^T);
+  // slower reference implementation.
+  kPolarSvd,
+  // QR variant (Nesme et al.): Gram-Schmidt of the columns of F. Cheaper, but
+  // not rotation-invariant in the element's orientation and its force is not
+  // the exact gradient of the energy.
+  kQr,
+};
+RotationMethod ParseRotationMethod(const std::string& name);  // "polar", "polar-svd", "qr"
+const char* RotationMethodName(RotationMethod method);
+
+// Rest-state data of one linear tetrahedron. The rest element stiffness is
+// K_e = V B^T C B (12 x 12); with the constant shape gradients g_a it factors
+// into 3x3 blocks K_ab = V (lambda g_a g_b^T + mu g_b g_a^T + mu (g_a . g_b) I),
+// which is what is stored: rotating it (R K_ab R^T) then costs four
+// matrix-vector products instead of two 12x12 products.
+struct TetRestData {
+  Eigen::Matrix<double, 4, 3> shape_gradients;  // row a = grad N_a in 1/mm (rest frame)
+  double volume_mm3 = 0.0;                      // rest volume (> 0 for a valid element)
+  double lambda_kpa = 0.0;                      // Lame lambda
+  double mu_kpa = 0.0;                          // Lame mu (shear modulus)
+  double mass_kg = 0.0;                         // rho * V
+};
+
+// Computes the rest data of the tetrahedron (x0, x1, x2, x3) in mm. Returns
+// false (and leaves `out` partly filled) when its signed volume is not positive.
+bool ComputeTetRestData(const Eigen::Vector3d& x0, const Eigen::Vector3d& x1,
+                        const Eigen::Vector3d& x2, const Eigen::Vector3d& x3,
+                        const Material& material, TetRestData* out);
+
+// Deformation gradient F = sum_a x_a g_a^T (3 x 3) of the element at positions x.
+Eigen::Matrix3d DeformationGradient(const TetRestData& rest, const Eigen::Matrix<double, 4, 3>& x);
+
+// Rotation of F by `method`. `rotation` holds the warm start on input (used by
+// kPolar) and the result on output. Returns the number of iterations used.
+int ExtractRotation(const Eigen::Matrix3d& F, RotationMethod method, Eigen::Matrix3d* rotation,
+                    int max_iterations = 20, double tolerance = 1e-12);
+
+// Corotational energy with the rotation R held fixed:
+//   E_e(x) = V (mu eps:eps + lambda/2 tr(eps)^2),  eps = sym(R^T F(x) - I)
+// equal to 1/2 u^T K_e u with u = R^T x - X. Units: uJ.
+double CorotationalEnergy(const TetRestData& rest, const Eigen::Matrix3d& R,
+                          const Eigen::Matrix<double, 4, 3>& x);
+
+// Adds the gradient dE_e/dx (fixed R) = R K_e (R^T x - X) to `gradient`
+// (row a = vertex a, mN). The force is its negative.
+void AddCorotationalGradient(const TetRestData& rest, const Eigen::Matrix3d& R,
+                             const Eigen::Matrix<double, 4, 3>& x,
+                             Eigen::Matrix<double, 4, 3>* gradient);
+
+// The 3x3 block (a, b) of the warped stiffness R K_e R^T (stiffness warping:
+// dR/dx is neglected), in mN/mm. Symmetric: block(b, a) = block(a, b)^T.
+inline Eigen::Matrix3d WarpedStiffnessBlock(const TetRestData& rest,
+                                            const Eigen::Matrix<double, 4, 3>& rotated_gradients,
+                                            int a, int b) {
+  const Eigen::Vector3d ga = rotated_gradients.row(a).transpose();
+  const Eigen::Vector3d gb = rotated_gradients.row(b).transpose();
+  Eigen::Matrix3d block = rest.lambda_kpa * ga * gb.transpose() + rest.mu_kpa * gb * ga.transpose();
+  block.diagonal().array() += rest.mu_kpa * ga.dot(gb);
+  return rest.volume_mm3 * block;
+}
+
+// The full rest stiffness K_e (12 x 12, vertex-major: dof 3a+i). For tests and
+// inspection; the solver never forms it.
+Eigen::Matrix<double, 12, 12> RestStiffnessMatrix(const TetRestData& rest);
+
+}  // namespace arreg::mechanics

@@ -1,0 +1,128 @@
+// Element kernels: rest stiffness invariants, rotation extraction.
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <random>
+
+#include "mechanics/tet_element.h"
+
+namespace arreg::mechanics {
+namespace {
+
+TetRestData SkewedTet(const Material& material = {}) {
+  TetRestData rest;
+  EXPECT_TRUE(ComputeTetRestData({0, 0, 0}, {2.0, 0.1, 0.3}, {0.4, 1.5, -0.2}, {0.3, 0.2, 1.8},
+                                 material, &rest));
+  return rest;
+}
+
+TEST(TetElement, RestStiffnessIsSymmetricWithSixRigidModes) {
+  const TetRestData rest = SkewedTet();
+  const Eigen::Matrix<double, 12, 12> k = RestStiffnessMatrix(rest);
+  EXPECT_LT((k - k.transpose()).norm(), 1e-12 * k.norm());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 12, 12>> eig(k);
+  const auto& ev = eig.eigenvalues();  // ascending
+  for (int i = 0; i < 6; ++i) EXPECT_LT(std::abs(ev[i]), 1e-10 * ev[11]) << i;
+  EXPECT_GT(ev[6], 1e-4 * ev[11]);
+}
+
+TEST(TetElement, RestStiffnessMatchesBtCB) {
+  // Independent construction from the strain-displacement matrix (Voigt
+  // order xx yy zz yz xz xy, engineering shear strains).
+  const Material m{5000.0, 0.3, 1000.0};
+  const TetRestData rest = SkewedTet(m);
+  Eigen::Matrix<double, 6, 12> B = Eigen::Matrix<double, 6, 12>::Zero();
+  for (int a = 0; a < 4; ++a) {
+    const Eigen::Vector3d g = rest.shape_gradients.row(a).transpose();
+    B(0, 3 * a) = g[0];
+    B(1, 3 * a + 1) = g[1];
+    B(2, 3 * a + 2) = g[2];
+    B(3, 3 * a + 1) = g[2];
+    B(3, 3 * a + 2) = g[1];
+    B(4, 3 * a) = g[2];
+    B(4, 3 * a + 2) = g[0];
+    B(5, 3 * a) = g[1];
+    B(5, 3 * a + 1) = g[0];
+  }
+  const double e = 5.0, nu = 0.3;  // kPa
+  Eigen::Matrix<double, 6, 6> C = Eigen::Matrix<double, 6, 6>::Zero();
+  const double c = e / ((1 + nu) * (1 - 2 * nu));
+  C.topLeftCorner<3, 3>().setConstant(c * nu);
+  C.topLeftCorner<3, 3>().diagonal().setConstant(c * (1 - nu));
+  C.bottomRightCorner<3, 3>().diagonal().setConstant(e / (2 * (1 + nu)));
+  const Eigen::Matrix<double, 12, 12> expected = rest.volume_mm3 * B.transpose() * C * B;
+  EXPECT_LT((RestStiffnessMatrix(rest) - expected).norm(), 1e-12 * expected.norm());
+}
+
+TEST(TetElement, RejectsInvertedElement) {
+  TetRestData rest;
+  EXPECT_FALSE(ComputeTetRestData({0, 0, 0}, {0, 1, 0}, {1, 0, 0}, {0, 0, 1}, Material{}, &rest));
+  EXPECT_LT(rest.volume_mm3, 0.0);
+}
+
+class RotationTest : public ::testing::TestWithParam<RotationMethod> {};
+
+TEST_P(RotationTest, RecoversPureRotationsUpTo179Degrees) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int trial = 0; trial < 50; ++trial) {
+    const Eigen::Vector3d axis = Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized();
+    const double angle = 3.12 * (trial + 1) / 50.0;
+    const Eigen::Matrix3d R_true = Eigen::AngleAxisd(angle, axis).toRotationMatrix();
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+    ExtractRotation(R_true, GetParam(), &R, 100);
+    EXPECT_LT((R - R_true).norm(), 1e-10) << "angle " << angle;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(AllMethods, RotationTest,
+                         ::testing::Values(RotationMethod::kPolar, RotationMethod::kPolarSvd,
+                                           RotationMethod::kQr));
+
+TEST(Rotation, PolarIterationMatchesSvdAndGivesSymmetricStretch) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-0.4, 0.4);
+  for (int trial = 0; trial < 100; ++trial) {
+    Eigen::Matrix3d F =
+        Eigen::AngleAxisd(2.0 * u(rng), Eigen::Vector3d(u(rng), u(rng), 1).normalized())
+            .toRotationMatrix();
+    Eigen::Matrix3d S;
+    S << 1 + u(rng), u(rng), u(rng), 0, 1 + u(rng), u(rng), 0, 0, 1 + u(rng);
+    S = (0.5 * (S + S.transpose())).eval();
+    if (S.determinant() <= 0.1) continue;
+    F = F * S;
+    Eigen::Matrix3d R_iter = Eigen::Matrix3d::Identity(), R_svd;
+    ExtractRotation(F, RotationMethod::kPolar, &R_iter, 100);
+    ExtractRotation(F, RotationMethod::kPolarSvd, &R_svd);
+    EXPECT_LT((R_iter - R_svd).norm(), 1e-9);
+    const Eigen::Matrix3d stretch = R_iter.transpose() * F;
+    EXPECT_LT((stretch - stretch.transpose()).norm(), 1e-9);
+    EXPECT_NEAR(R_iter.determinant(), 1.0, 1e-12);
+  }
+}
+
+TEST(Rotation, InvertedDeformationStillGivesProperRotation) {
+  const Eigen::Matrix3d F = Eigen::Vector3d(1.0, 1.0, -0.3).asDiagonal();
+  for (RotationMethod m :
+       {RotationMethod::kPolar, RotationMethod::kPolarSvd, RotationMethod::kQr}) {
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+    ExtractRotation(F, m, &R);
+    EXPECT_NEAR(R.determinant(), 1.0, 1e-12) << RotationMethodName(m);
+    EXPECT_LT((R * R.transpose() - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+  }
+}
+
+TEST(Material, CheckNamesTheField) {
+  Material m;
+  m.poisson_ratio = 0.5;
+  try {
+    m.Check();
+    FAIL() << "expected arreg::Error";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("poisson_ratio"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace arreg::mechanics

@@ -1,0 +1,221 @@
+// Linear solvers and the implicit Euler integrator: CG vs CHOLMOD, status
+// reporting, cached factorisation, damping.
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+#include "mechanics/integrator.h"
+#include "mechanics/spring_energy.h"
+#include "mechanics/units.h"
+#include "mechanics_test_util.h"
+
+namespace arreg::mechanics {
+namespace {
+
+using testing::SmallBox;
+
+// A box fixed at x = 0, pulled by springs at its far end, under gravity.
+struct SpringScene {
+  MechanicalState state;
+  CorotationalElasticity elastic;
+  SpringEnergy springs;
+  GravityEnergy gravity{{0, 0, -kGravity}};
+  static constexpr double kGravity = 9806.65;
+
+  SpringScene() : state(SmallBox({6, 2, 2}, {60, 20, 20}), Material{3000, 0.45, 1000}) {
+    for (int v = 0; v < state.num_vertices(); ++v)
+      if (state.rest_positions()(v, 0) == 0.0) state.SetFixed(v, true);
+    const RowMatX3d anchors = (RowMatX3d(3, 3) << 59, 10, 10, 59, 2, 18, 55, 18, 2).finished();
+    const EmbeddedPoints e =
+        EmbeddedPoints::Embed(anchors, state.rest_positions(), state.tetrahedra());
+    for (int i = 0; i < e.size(); ++i)
+      springs.Add(e[i], anchors.row(i).transpose() + Eigen::Vector3d(4, 3, 6), 20.0);
+  }
+  std::vector<EnergyTerm*> terms() { return {&springs, &gravity}; }
+};
+
+ImplicitEulerOptions StepOptions(LinearSolverType type, Preconditioner pc) {
+  ImplicitEulerOptions o;
+  o.dt_s = 0.02;
+  o.linear_solver.type = type;
+  o.linear_solver.preconditioner = pc;
+  o.linear_solver.relative_tolerance = 1e-12;
+  o.linear_solver.max_iterations = 5000;
+  return o;
+}
+
+class CgVsCholmod : public ::testing::TestWithParam<Preconditioner> {};
+
+TEST_P(CgVsCholmod, SameStepToOneInAMillion) {
+  SpringScene a, b;
+  ImplicitEulerIntegrator direct(StepOptions(LinearSolverType::kCholmod, Preconditioner::kJacobi));
+  ImplicitEulerIntegrator cg(StepOptions(LinearSolverType::kConjugateGradient, GetParam()));
+  for (int step = 0; step < 5; ++step) {
+    const StepSummary sa = direct.Step(&a.state, &a.elastic, a.terms());
+    const StepSummary sb = cg.Step(&b.state, &b.elastic, b.terms());
+    ASSERT_EQ(sa.status, StepStatus::kConverged) << sa.message;
+    ASSERT_EQ(sb.status, StepStatus::kConverged) << sb.message;
+    EXPECT_GT(sb.linear_iterations, 0);
+    const RowMatX3d da = a.state.positions() - a.state.rest_positions();
+    const RowMatX3d db = b.state.positions() - b.state.rest_positions();
+    ASSERT_GT(da.norm(), 1e-3);
+    EXPECT_LT((da - db).norm(), 1e-6 * da.norm()) << "step " << step;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Preconditioners, CgVsCholmod,
+                         ::testing::Values(Preconditioner::kJacobi,
+                                           Preconditioner::kIncompleteCholesky,
+                                           Preconditioner::kNone));
+
+TEST(Integrator, FixedVerticesStayAndSpringsPull) {
+  SpringScene s;
+  ImplicitEulerIntegrator integrator(
+      StepOptions(LinearSolverType::kCholmod, Preconditioner::kJacobi));
+  for (int i = 0; i < 10; ++i) integrator.Step(&s.state, &s.elastic, s.terms());
+  for (int v = 0; v < s.state.num_vertices(); ++v)
+    if (s.state.is_fixed(v)) {
+      EXPECT_EQ(s.state.position(v), s.state.rest_position(v));
+      EXPECT_EQ(s.state.velocity(v).norm(), 0.0);
+    }
+  // The springs pull the far end towards +x.
+  EXPECT_GT(s.springs.AnchorPosition(0, s.state, s.state.positions()).x(), 59.5);
+}
+
+TEST(Integrator, FullNewtonReachesItsTolerance) {
+  SpringScene s;
+  ImplicitEulerOptions o = StepOptions(LinearSolverType::kCholmod, Preconditioner::kJacobi);
+  o.newton_mode = NewtonMode::kFullNewton;
+  o.newton_tolerance_mm = 1e-9;
+  ImplicitEulerIntegrator integrator(o);
+  const StepSummary summary = integrator.Step(&s.state, &s.elastic, s.terms());
+  EXPECT_EQ(summary.status, StepStatus::kConverged);
+  EXPECT_GT(summary.newton_iterations, 1);
+  EXPECT_LT(summary.last_increment_mm, 1e-9);
+}
+
+TEST(Integrator, SubstepsSplitTheFrame) {
+  SpringScene s;
+  ImplicitEulerOptions o = StepOptions(LinearSolverType::kCholmod, Preconditioner::kJacobi);
+  o.substeps = 4;
+  ImplicitEulerIntegrator integrator(o);
+  const StepSummary summary = integrator.Step(&s.state, &s.elastic, s.terms());
+  EXPECT_EQ(summary.newton_iterations, 4);
+  EXPECT_EQ(summary.linear_solves, 4);
+}
+
+// Free vibration of a cantilever started with a bending velocity field (no
+// springs, no gravity). Returns the number of steps in which the mechanical
+// energy (kinetic + elastic) grew; `energy` and `kinetic` get their history.
+int RunVibration(double alpha, double beta, std::vector<double>* energy,
+                 std::vector<double>* kinetic) {
+  MechanicalState state(SmallBox({6, 2, 2}, {60, 20, 20}), Material{3000, 0.45, 1000});
+  for (int v = 0; v < state.num_vertices(); ++v)
+    if (state.rest_positions()(v, 0) == 0.0) state.SetFixed(v, true);
+  for (int v = 0; v < state.num_vertices(); ++v)
+    state.mutable_velocities()(v, 2) = 2.0 * state.rest_positions()(v, 0);  // mm/s
+  CorotationalElasticity elastic;
+  ImplicitEulerOptions o = StepOptions(LinearSolverType::kCholmod, Preconditioner::kJacobi);
+  o.dt_s = 0.005;
+  o.rayleigh_mass_alpha = alpha;
+  o.rayleigh_stiffness_beta = beta;
+  ImplicitEulerIntegrator integrator(o);
+  energy->push_back(integrator.KineticEnergy(state));
+  kinetic->push_back(energy->back());
+  int increases = 0;
+  for (int i = 0; i < 200; ++i) {
+    integrator.Step(&state, &elastic, {});
+    elastic.Update(state, state.positions());
+    kinetic->push_back(integrator.KineticEnergy(state));
+    energy->push_back(kinetic->back() + elastic.Value(state, state.positions()));
+    if (energy->back() > (*energy)[energy->size() - 2] * (1 + 1e-9)) ++increases;
+  }
+  return increases;
+}
+
+TEST(Integrator, DampingMakesTheKineticEnergyDecay) {
+  std::vector<double> damped, damped_kinetic, undamped, undamped_kinetic;
+  EXPECT_EQ(RunVibration(20.0, 0.005, &damped, &damped_kinetic),
+            0);  // mechanical energy never grows
+  RunVibration(0.0, 0.0, &undamped, &undamped_kinetic);
+  ASSERT_GT(damped.front(), 0.0);
+  // 1 s with alpha = 20/s: the kinetic energy falls by many orders of magnitude.
+  EXPECT_LT(damped.back(), 1e-4 * damped.front());
+  EXPECT_LT(*std::max_element(damped_kinetic.end() - 50, damped_kinetic.end()),
+            1e-4 * damped_kinetic.front());
+  // Backward Euler alone dissipates too, but far less.
+  EXPECT_GT(undamped.back(), 0.2 * undamped.front());
+}
+
+TEST(LinearSolver, ReportsIndefiniteMatrices) {
+  SparseMatrixd A(3, 3);
+  A.insert(0, 0) = 1.0;
+  A.insert(1, 1) = -2.0;
+  A.insert(2, 2) = 1.0;
+  A.makeCompressed();
+  const Eigen::VectorXd b = Eigen::VectorXd::Ones(3);
+  for (LinearSolverType type : {LinearSolverType::kCholmod, LinearSolverType::kConjugateGradient}) {
+    LinearSolverOptions o;
+    o.type = type;
+    o.preconditioner = Preconditioner::kNone;
+    auto solver = LinearSolver::Create(o);
+    Eigen::VectorXd x;
+    EXPECT_EQ(solver->Solve(A, b, &x).status, LinearSolverStatus::kIndefinite)
+        << LinearSolverTypeName(type);
+  }
+}
+
+TEST(LinearSolver, CholmodKeepsItsSymbolicAnalysisAcrossValueChanges) {
+  SpringScene s;
+  SystemMatrix H(s.state.num_vertices(), s.state.tetrahedra());
+  s.elastic.Update(s.state, s.state.positions());
+  s.elastic.AddHessian(s.state, s.state.positions(), 1.0, &H);
+  H.ApplyDirichlet(s.state.fixed_mask());
+  auto solver = LinearSolver::Create(LinearSolverOptions{});
+  const Eigen::VectorXd b = Eigen::VectorXd::Ones(H.num_dofs());
+  Eigen::VectorXd x1, x2, x3;
+  const LinearSolverSummary first = solver->Solve(H.matrix(), b, &x1);
+  EXPECT_TRUE(first.symbolic_analysis && first.numeric_factorization);
+  const LinearSolverSummary same = solver->Solve(H.matrix(), b, &x2);
+  EXPECT_FALSE(same.symbolic_analysis || same.numeric_factorization);
+  EXPECT_LT((x1 - x2).norm(), 1e-14 * x1.norm());
+  for (int k = 0; k < H.nonzeros(); ++k) H.values()[k] *= 2.0;
+  solver->ValuesChanged();
+  const LinearSolverSummary changed = solver->Solve(H.matrix(), b, &x3);
+  EXPECT_FALSE(changed.symbolic_analysis);
+  EXPECT_TRUE(changed.numeric_factorization);
+  // Doubling the matrix halves the solution.
+  EXPECT_LT((x3 - 0.5 * x1).norm(), 1e-10 * x1.norm());
+  // And the residual is small.
+  EXPECT_LT((H.matrix() * x3 - b).norm(), 1e-8 * b.norm());
+}
+
+TEST(LinearSolver, CgStopsAtItsIterationCap) {
+  SpringScene s;
+  SystemMatrix H(s.state.num_vertices(), s.state.tetrahedra());
+  s.elastic.Update(s.state, s.state.positions());
+  s.elastic.AddHessian(s.state, s.state.positions(), 1.0, &H);
+  H.ApplyDirichlet(s.state.fixed_mask());
+  LinearSolverOptions o;
+  o.type = LinearSolverType::kConjugateGradient;
+  o.max_iterations = 3;
+  o.relative_tolerance = 1e-14;
+  auto solver = LinearSolver::Create(o);
+  Eigen::VectorXd x;
+  const LinearSolverSummary summary =
+      solver->Solve(H.matrix(), Eigen::VectorXd::Ones(H.num_dofs()), &x);
+  EXPECT_EQ(summary.status, LinearSolverStatus::kMaxIterations);
+  EXPECT_EQ(summary.iterations, 3);
+}
+
+TEST(Options, CheckRejectsBadValues) {
+  ImplicitEulerOptions o;
+  o.dt_s = 0.0;
+  EXPECT_THROW(o.Check(), Error);
+  LinearSolverOptions l;
+  l.relative_tolerance = -1;
+  EXPECT_THROW(LinearSolver::Create(l), Error);
+  EXPECT_THROW(ParseLinearSolverType("lu"), Error);
+}
+
+}  // namespace
+}  // namespace arreg::mechanics
