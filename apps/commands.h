@@ -9,5 +9,6 @@ int RunBench(int argc, char** argv);
 int RunEval(int argc, char** argv);
 
 // Benchmarks dispatched by RunBench (apps/bench_*.cc).
+int RunBenchCutting(int argc, char** argv);
 
 }  // namespace arreg::cli

@@ -1,0 +1,317 @@
+// `arreg bench cutting`: the thesis beam experiment (5.2.2) comparing our remesher with
+// the Bielser-style baseline per snapping threshold, and the time of one remeshing event.
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <nlohmann/json.hpp>
+#include <ostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "commands.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/mesh_generators.h"
+#include "cutting/mesh_checks.h"
+#include "cutting/system_conditioning.h"
+#include "cutting/tet_cutter.h"
+#include "option_parser.h"
+
+namespace arreg::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using cutting::CutOptions;
+using cutting::CutStatus;
+using cutting::CutSummary;
+using cutting::CuttableMesh;
+using cutting::RemeshMethod;
+
+double ThreadCpuMs() {
+  timespec ts;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n == 0 ? 0.0 : (n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]));
+}
+
+// The beam: 100 x 30 x 20 mm, 10 x 3 x 2 hexahedral cells of 6 tetrahedra
+// (132 vertices, 360 tetrahedra; the thesis beam has 131 and 371).
+TetMesh MakeBeam() {
+  return MakeBoxTetMesh(Eigen::Vector3d(100, 30, 20), Eigen::Vector3i(10, 3, 2), BoxTetSplit::kSix);
+}
+
+// The cut plane: across the beam axis, 0.3 mm from the vertex layer x = 50 mm at
+// y = z = 0 and tilted so that its distance to that layer's vertices grows to about
+// 5 mm (half a cell): it passes close to many vertices, at varied distances.
+const Eigen::Vector3d kPlanePoint(50.3, 0, 0);
+const Eigen::Vector3d kPlaneNormal = Eigen::Vector3d(1, -0.12, -0.08).normalized();
+
+// The part of the plane with y below `front_mm` (the cut advancing along y).
+cutting::CutSurface PlaneUpTo(double front_mm) {
+  const Eigen::Vector3d u = kPlaneNormal.cross(Eigen::Vector3d::UnitZ()).normalized();
+  const Eigen::Vector3d w = kPlaneNormal.cross(u).normalized();
+  const double t0 = (-5 - kPlanePoint.y()) / u.y(), t1 = (front_mm - kPlanePoint.y()) / u.y();
+  return cutting::MakeGridSurface(
+      [&](double a, double b) {
+        return Eigen::Vector3d(kPlanePoint + (-20 + 40 * a) * w + (t0 + (t1 - t0) * b) * u);
+      },
+      1, 1);
+}
+
+struct StepRecord {
+  int step = 0;
+  int num_vertices = 0, num_tetrahedra = 0, crossed = 0;
+  double min_dihedral_deg = 0, condition_number = 0;
+  bool rejected = false;
+};
+
+struct Run {
+  std::string method;
+  double eps = 0;
+  std::vector<StepRecord> steps;
+  int nv_crossed = 0;  // n(v): original tetrahedra crossed by the whole plane
+  double vertices_per_nv = 0, tetrahedra_per_nv = 0;
+};
+
+Run RunBeam(RemeshMethod method, double eps, int num_steps, int nv_crossed,
+            const cutting::ConditioningOptions& cond) {
+  Run run;
+  run.method = method == RemeshMethod::kFlips ? "ours" : "bielser";
+  run.eps = eps;
+  run.nv_crossed = nv_crossed;
+  const TetMesh beam = MakeBeam();
+  CuttableMesh mesh(beam);
+  CutOptions opt;
+  opt.method = method;
+  opt.snap_epsilon = eps;
+  for (int step = 0; step <= num_steps; ++step) {
+    StepRecord r;
+    r.step = step;
+    if (step > 0) {
+      // The front passes the far side of the beam (y = 30) at the last step.
+      const double front = -2 + 34.0 * step / num_steps;
+      const CutSummary s = mesh.Cut(PlaneUpTo(front), opt);
+      r.crossed = s.num_crossed_tetrahedra;
+      r.rejected = s.status == CutStatus::kRejected;
+    }
+    const TetMesh rest = mesh.RestMesh();
+    const cutting::MeshInvariants inv = cutting::CheckMeshInvariants(rest);
+    ARREG_CHECK_INPUT(inv.ok(), "", "bench cutting", "invariants broken: ", inv.ToString());
+    r.num_vertices = rest.num_vertices();
+    r.num_tetrahedra = rest.num_tetrahedra();
+    r.min_dihedral_deg = inv.min_dihedral_deg;
+    r.condition_number = cutting::SystemConditioning(rest, cond).condition_number;
+    run.steps.push_back(r);
+  }
+  run.vertices_per_nv =
+      static_cast<double>(run.steps.back().num_vertices - run.steps.front().num_vertices) /
+      nv_crossed;
+  run.tetrahedra_per_nv =
+      static_cast<double>(run.steps.back().num_tetrahedra - run.steps.front().num_tetrahedra) /
+      nv_crossed;
+  return run;
+}
+
+// A two-panel SVG: vertex count and log10 condition number per step.
+std::string Plot(const std::vector<Run>& runs) {
+  const int W = 480, H = 320, pad = 50;
+  const char* colors[] = {"#1f77b4", "#ff7f0e", "#2ca02c", "#d62728"};
+  std::ostringstream s;
+  s << "<svg xmlns='http://www.w3.org/2000/svg' width='" << 2 * W << "' height='" << H + 40
+    << "' font-family='sans-serif' font-size='11'>\n";
+  for (int panel = 0; panel < 2; ++panel) {
+    double lo = 1e300, hi = -1e300;
+    int max_step = 1;
+    auto value = [&](const StepRecord& r) {
+      return panel == 0 ? r.num_vertices : std::log10(std::max(r.condition_number, 1.0));
+    };
+    for (const Run& run : runs)
+      for (const StepRecord& r : run.steps) {
+        lo = std::min(lo, value(r));
+        hi = std::max(hi, value(r));
+        max_step = std::max(max_step, r.step);
+      }
+    if (hi <= lo) hi = lo + 1;
+    const int x0 = panel * W;
+    s << "<text x='" << x0 + W / 2 << "' y='16' text-anchor='middle'>"
+      << (panel == 0 ? "number of vertices" : "log10 condition number of M + dt^2 K")
+      << " per step</text>\n";
+    s << "<rect x='" << x0 + pad << "' y='" << pad / 2 << "' width='" << W - 2 * pad << "' height='"
+      << H - pad << "' fill='none' stroke='#888'/>\n";
+    s << "<text x='" << x0 + pad - 4 << "' y='" << pad / 2 + 10 << "' text-anchor='end'>" << hi
+      << "</text><text x='" << x0 + pad - 4 << "' y='" << H - pad / 2 << "' text-anchor='end'>"
+      << lo << "</text>\n";
+    for (size_t k = 0; k < runs.size(); ++k) {
+      const Run& run = runs[k];
+      s << "<polyline fill='none' stroke='" << colors[static_cast<int>(run.eps * 10 + 0.5) % 4]
+        << "' stroke-dasharray='" << (run.method == "ours" ? "none" : "5,3") << "' points='";
+      for (const StepRecord& r : run.steps)
+        s << x0 + pad + (W - 2 * pad) * r.step / max_step << ","
+          << pad / 2 + (H - pad) * (1 - (value(r) - lo) / (hi - lo)) << " ";
+      s << "'/>\n";
+    }
+  }
+  for (size_t k = 0; k < runs.size(); ++k)
+    s << "<text x='" << 20 + 120 * (k % 8) << "' y='" << H + 20 + 14 * (k / 8) << "' fill='"
+      << colors[static_cast<int>(runs[k].eps * 10 + 0.5) % 4] << "'>" << runs[k].method
+      << (runs[k].method == "ours" ? " (solid)" : " (dashed)") << " eps " << runs[k].eps
+      << "</text>\n";
+  s << "</svg>\n";
+  return s.str();
+}
+
+}  // namespace
+
+int RunBenchCutting(int argc, char** argv) {
+  std::string json_path, svg_path;
+  int steps = 10, repeats = 21;
+  OptionParser parser("arreg bench cutting [--steps N] [--repeats N] [--json OUT] [--svg OUT]",
+                      "Cuts the thesis beam progressively with our remesher and the Bielser-style "
+                      "baseline at snapping thresholds 0, 0.1, 0.2, 0.3 (vertex/element growth, "
+                      "minimum dihedral angle, condition number of M + dt^2 K per step), and "
+                      "times one remeshing event crossing about 100 tetrahedra.");
+  parser.AddInt("steps", &steps, "N", "cut steps of the advancing plane");
+  parser.AddInt("repeats", &repeats, "N", "timed repetitions of the speed event");
+  parser.AddString("json", &json_path, "OUT", "write all figures as JSON");
+  parser.AddString("svg", &svg_path, "OUT", "write the vertex-count / condition-number plot");
+  if (!parser.Parse(argc, argv)) return 0;
+  ARREG_CHECK_INPUT(steps >= 1, "", "--steps", "must be >= 1");
+  ARREG_CHECK_INPUT(repeats >= 1, "", "--repeats", "must be >= 1");
+
+  const TetMesh beam = MakeBeam();
+  cutting::ConditioningOptions cond;
+  int nv_crossed = 0;
+  {
+    // n(v): original elements crossed by the whole plane (no snapping, no remeshing kept).
+    CuttableMesh probe(beam);
+    CutOptions o;
+    o.snap_epsilon = 0;
+    nv_crossed = probe.Cut(PlaneUpTo(40), o).num_crossed_tetrahedra;
+  }
+  std::printf("beam: %d vertices, %d tetrahedra; the plane crosses n(v) = %d of them\n",
+              beam.num_vertices(), beam.num_tetrahedra(), nv_crossed);
+  std::printf("%-8s %4s | %8s %8s | %8s %8s %10s %12s | %s\n", "method", "eps", "dV/n(v)",
+              "dT/n(v)", "vertices", "tets", "min dih.", "cond. final", "cond. max over steps");
+  std::vector<Run> runs;
+  for (RemeshMethod method : {RemeshMethod::kFlips, RemeshMethod::kBielser})
+    for (double eps : {0.0, 0.1, 0.2, 0.3}) {
+      Run run = RunBeam(method, eps, steps, nv_crossed, cond);
+      double worst = 0, min_dih = 180;
+      for (const StepRecord& r : run.steps) {
+        worst = std::max(worst, r.condition_number);
+        min_dih = std::min(min_dih, r.min_dihedral_deg);
+      }
+      std::printf("%-8s %4.1f | %8.2f %8.2f | %8d %8d %10.3f %12.4g | %.4g\n", run.method.c_str(),
+                  eps, run.vertices_per_nv, run.tetrahedra_per_nv, run.steps.back().num_vertices,
+                  run.steps.back().num_tetrahedra, min_dih, run.steps.back().condition_number,
+                  worst);
+      runs.push_back(std::move(run));
+    }
+  std::printf("(cond. of the uncut beam: %.4g)\n", runs[0].steps[0].condition_number);
+
+  // Growth when the whole plane is inserted in one event (thesis 5.2.1 counts).
+  nlohmann::json single;
+  std::printf("\none event, whole plane: added vertices / tetrahedra per n(v)\n");
+  std::printf("%-8s %4s | %10s %10s | %10s %10s\n", "method", "eps", "dV remesh", "dT remesh",
+              "dV sep.", "dT sep.");
+  for (RemeshMethod method : {RemeshMethod::kFlips, RemeshMethod::kBielser})
+    for (double eps : {0.0, 0.1, 0.2, 0.3}) {
+      double dv[2], dt[2];
+      for (int separate = 0; separate < 2; ++separate) {
+        CuttableMesh mesh(beam);
+        CutOptions o;
+        o.method = method;
+        o.snap_epsilon = eps;
+        o.separate = separate == 1;
+        mesh.Cut(PlaneUpTo(40), o);
+        dv[separate] = static_cast<double>(mesh.num_vertices() - beam.num_vertices()) / nv_crossed;
+        dt[separate] =
+            static_cast<double>(mesh.num_tetrahedra() - beam.num_tetrahedra()) / nv_crossed;
+      }
+      const char* name = method == RemeshMethod::kFlips ? "ours" : "bielser";
+      std::printf("%-8s %4.1f | %10.2f %10.2f | %10.2f %10.2f\n", name, eps, dv[0], dt[0], dv[1],
+                  dt[1]);
+      single.push_back({{"method", name},
+                        {"eps", eps},
+                        {"vertices_per_nv_remesh", dv[0]},
+                        {"tetrahedra_per_nv_remesh", dt[0]},
+                        {"vertices_per_nv_separated", dv[1]},
+                        {"tetrahedra_per_nv_separated", dt[1]}});
+    }
+
+  // Speed: one event through a 5 x 5 x 4 cell box (about 100 crossed elements).
+  const TetMesh box =
+      MakeBoxTetMesh(Eigen::Vector3d(50, 50, 40), Eigen::Vector3i(5, 5, 4), BoxTetSplit::kSix);
+  const cutting::CutSurface plane = cutting::MakePlaneSurface(
+      {25.4, 25, 20}, Eigen::Vector3d(1, 0.15, 0.1).normalized(), 100, 100, {0, 1, 0});
+  std::vector<double> ms, cpu_ms;
+  int crossed = 0;
+  for (int r = 0; r < repeats; ++r) {
+    CuttableMesh mesh(box);
+    CutOptions o;
+    o.snap_epsilon = 0.1;
+    const double c0 = ThreadCpuMs();
+    const auto t0 = Clock::now();
+    const CutSummary s = mesh.Cut(plane, o);
+    ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
+    cpu_ms.push_back(ThreadCpuMs() - c0);
+    crossed = s.num_crossed_tetrahedra;
+  }
+  const double median_ms = Median(ms), median_cpu_ms = Median(cpu_ms);
+  std::printf(
+      "remeshing event crossing %d tetrahedra (box of %d): median %.3f ms wall, %.3f ms "
+      "thread CPU over %d runs\n",
+      crossed, box.num_tetrahedra(), median_ms, median_cpu_ms, repeats);
+
+  if (!json_path.empty()) {
+    nlohmann::json j;
+    j["beam"] = {{"vertices", beam.num_vertices()},
+                 {"tetrahedra", beam.num_tetrahedra()},
+                 {"n_v", nv_crossed},
+                 {"conditioning",
+                  {{"youngs_modulus_pa", cond.youngs_modulus_pa},
+                   {"poisson_ratio", cond.poisson_ratio},
+                   {"density_kg_per_m3", cond.density_kg_per_m3},
+                   {"dt_s", cond.dt_s}}}};
+    for (const Run& run : runs) {
+      nlohmann::json jr = {{"method", run.method},
+                           {"eps", run.eps},
+                           {"vertices_per_nv", run.vertices_per_nv},
+                           {"tetrahedra_per_nv", run.tetrahedra_per_nv}};
+      for (const StepRecord& r : run.steps)
+        jr["steps"].push_back({{"step", r.step},
+                               {"vertices", r.num_vertices},
+                               {"tetrahedra", r.num_tetrahedra},
+                               {"crossed", r.crossed},
+                               {"rejected", r.rejected},
+                               {"min_dihedral_deg", r.min_dihedral_deg},
+                               {"condition_number", r.condition_number}});
+      j["runs"].push_back(jr);
+    }
+    j["single_event"] = single;
+    j["speed"] = {{"crossed_tetrahedra", crossed},
+                  {"mesh_tetrahedra", box.num_tetrahedra()},
+                  {"median_ms", median_ms},
+                  {"median_thread_cpu_ms", median_cpu_ms},
+                  {"repeats", repeats}};
+    WriteFileAtomic(json_path, [&](std::ostream& out) { out << j.dump(2) << "\n"; });
+  }
+  if (!svg_path.empty()) {
+    const std::string svg = Plot(runs);
+    WriteFileAtomic(svg_path, [&](std::ostream& out) { out << svg; });
+  }
+  return 0;
+}
+
+}  // namespace arreg::cli
