@@ -7,6 +7,7 @@ namespace arreg::cli {
 
 int RunBench(int argc, char** argv);
 int RunEval(int argc, char** argv);
+int RunInfo(int argc, char** argv);
 
 // Benchmarks dispatched by RunBench (apps/bench_*.cc).
 int RunBenchCutting(int argc, char** argv);

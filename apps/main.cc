@@ -20,6 +20,7 @@ struct Command {
 constexpr Command kCommands[] = {
     {"bench", arreg::cli::RunBench, "speed benchmarks that print figures and write JSON"},
     {"eval", arreg::cli::RunEval, "accuracy against ground truth: Dice, Hausdorff, feature error"},
+    {"info", arreg::cli::RunInfo, "describe a mesh file (counts, volume, quality)"},
 };
 
 void PrintUsage(std::FILE* out) {

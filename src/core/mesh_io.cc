@@ -25,11 +25,9 @@ int64_t TextScanner::ParseInt(std::string_view token, std::string_view what) con
   int64_t value = 0;
   const auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), value);
   if (ec == std::errc::result_out_of_range)
-    Fail("integer '" + std::string(token.substr(0, 40)) + "' out of range for " +
-         std::string(what));
+    Fail("integer '" + Printable(token) + "' out of range for " + std::string(what));
   if (ec != std::errc() || ptr != t.data() + t.size() || t.empty())
-    Fail("expected an integer " + std::string(what) + ", found '" +
-         std::string(token.substr(0, 40)) + "'");
+    Fail("expected an integer " + std::string(what) + ", found '" + Printable(token) + "'");
   return value;
 }
 
@@ -45,11 +43,9 @@ double TextScanner::ParseDouble(std::string_view token, std::string_view what) c
     value = std::strtod(copy.c_str(), nullptr);
     ok = true;
   }
-  if (!ok)
-    Fail("expected a number " + std::string(what) + ", found '" + std::string(token.substr(0, 40)) +
-         "'");
+  if (!ok) Fail("expected a number " + std::string(what) + ", found '" + Printable(token) + "'");
   if (!std::isfinite(value))
-    Fail(std::string(what) + " is not finite ('" + std::string(token.substr(0, 40)) + "')");
+    Fail(std::string(what) + " is not finite ('" + Printable(token) + "')");
   return value;
 }
 

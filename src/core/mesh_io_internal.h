@@ -134,6 +134,25 @@ class TextScanner {
   bool binary_ = false;
 };
 
+// At most `max_chars` of `text` for an error message, with bytes that are not
+// printable ASCII shown as \xNN (binary garbage must not mangle a terminal).
+inline std::string Printable(std::string_view text, size_t max_chars = 40) {
+  std::string out;
+  for (size_t i = 0; i < text.size() && i < max_chars; ++i) {
+    const unsigned char c = static_cast<unsigned char>(text[i]);
+    if (c >= 32 && c < 127) {
+      out += static_cast<char>(c);
+    } else {
+      static const char* kHex = "0123456789abcdef";
+      out += "\\x";
+      out += kHex[c >> 4];
+      out += kHex[c & 15];
+    }
+  }
+  if (text.size() > max_chars) out += "...";
+  return out;
+}
+
 // Reads fixed-size values from a binary block, naming the byte offset on errors.
 class BinaryCursor {
  public:

@@ -168,7 +168,7 @@ struct Reader {
     const std::string_view line = s.Line();
     if (line != expected) {
       s.FailAtLine(line_number, "expected " + std::string(expected) + " " + context + ", found '" +
-                                    std::string(line.substr(0, 40)) + "'");
+                                    Printable(line) + "'");
     }
   }
 
@@ -328,14 +328,13 @@ void ReadMsh(const std::string& path, std::string_view text, MeshFileData* out) 
       else if (line[0] == '$')
         r.SkipSection(line);
       else
-        s.Fail("expected a section ($ELM), found '" + std::string(line.substr(0, 40)) + "'");
+        s.Fail("expected a section ($ELM), found '" + Printable(line) + "'");
     }
     r.Finish();
     return;
   }
   if (first != "$MeshFormat")
-    s.Fail("not a Gmsh file: expected $MeshFormat or $NOD, found '" +
-           std::string(first.substr(0, 40)) + "'");
+    s.Fail("not a Gmsh file: expected $MeshFormat or $NOD, found '" + Printable(first) + "'");
   const std::string_view version = s.TokenOnLine();
   const int64_t file_type = s.IntOnLine("file type (0 = ASCII)");
   s.SkipRestOfLine();
@@ -354,8 +353,7 @@ void ReadMsh(const std::string& path, std::string_view text, MeshFileData* out) 
     std::string_view line = s.Line();
     while (line.empty() && !s.AtEnd()) line = s.Line();
     if (line.empty()) break;
-    if (line[0] != '$')
-      s.Fail("expected a section name, found '" + std::string(line.substr(0, 40)) + "'");
+    if (line[0] != '$') s.Fail("expected a section name, found '" + Printable(line) + "'");
     if (line == "$Nodes") {
       if (major == 2)
         r.ReadNodesV12("$EndNodes");

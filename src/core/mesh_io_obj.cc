@@ -35,7 +35,7 @@ Corner ParseCorner(const TextScanner& s, std::string_view token, int nv, int nvt
                " out of range: " + std::to_string(counts[part]) + " defined so far");
       *targets[part] = static_cast<int>(index);
     } else if (part == 0) {
-      s.Fail("face corner '" + std::string(token.substr(0, 40)) + "' has no vertex index");
+      s.Fail("face corner '" + Printable(token) + "' has no vertex index");
     }
     if (slash == std::string_view::npos) break;
     start = slash + 1;

@@ -36,11 +36,10 @@ void ReadOff(const std::string& path, std::string_view text, MeshFileData* out) 
   TextScanner s(path, text);
   const std::string_view header = OffToken(s);
   if (header.size() < 3 || header.substr(header.size() - 3) != "OFF")
-    s.Fail("not an OFF file: expected OFF, COFF, NOFF or CNOFF, found '" +
-           std::string(header.substr(0, 40)) + "'");
+    s.Fail("not an OFF file: expected OFF, COFF, NOFF or CNOFF, found '" + Printable(header) + "'");
   const std::string_view prefix = header.substr(0, header.size() - 3);
   if (prefix != "" && prefix != "C" && prefix != "N" && prefix != "CN")
-    s.Fail("unsupported OFF variant '" + std::string(header.substr(0, 40)) + "'");
+    s.Fail("unsupported OFF variant '" + Printable(header) + "'");
   if (!s.AtEndOfLine()) {
     const std::string_view next = s.TokenOnLine();
     if (next == "BINARY") s.Fail("binary OFF files are not supported");

@@ -85,7 +85,7 @@ void Expect(TextScanner& s, std::string_view expected) {
   const std::string_view t = s.Token();
   if (t != expected)
     s.Fail("expected '" + std::string(expected) + "', found " +
-           (t.empty() ? std::string("end of file") : "'" + std::string(t.substr(0, 40)) + "'"));
+           (t.empty() ? std::string("end of file") : "'" + Printable(t) + "'"));
 }
 
 void ReadAsciiStl(const std::string& path, std::string_view text, MeshFileData* out) {
@@ -97,7 +97,7 @@ void ReadAsciiStl(const std::string& path, std::string_view text, MeshFileData* 
   for (;;) {
     const std::string_view t = s.Token();
     if (t.empty()) break;
-    if (t != "solid") s.Fail("expected 'solid', found '" + std::string(t.substr(0, 40)) + "'");
+    if (t != "solid") s.Fail("expected 'solid', found '" + Printable(t) + "'");
     s.SkipRestOfLine();  // solid name
     ++solids;
     for (;;) {
@@ -108,8 +108,7 @@ void ReadAsciiStl(const std::string& path, std::string_view text, MeshFileData* 
       }
       if (key != "facet")
         s.Fail("expected 'facet' or 'endsolid', found " +
-               (key.empty() ? std::string("end of file")
-                            : "'" + std::string(key.substr(0, 40)) + "'"));
+               (key.empty() ? std::string("end of file") : "'" + Printable(key) + "'"));
       Expect(s, "normal");
       for (int a = 0; a < 3; ++a) s.Double("facet normal component");
       Expect(s, "outer");

@@ -101,7 +101,7 @@ class VtkReader {
     const std::string_view header = s_.Line();
     if (header.rfind("# vtk DataFile Version", 0) != 0)
       s_.Fail("not a VTK legacy file: expected '# vtk DataFile Version x.y', found '" +
-              std::string(header.substr(0, 40)) + "'");
+              Printable(header) + "'");
     const std::string_view version =
         header.substr(std::string_view("# vtk DataFile Version").size());
     const size_t digit = version.find_first_of("0123456789");
@@ -111,7 +111,7 @@ class VtkReader {
     if (mode == "BINARY")
       binary_ = true;
     else if (mode != "ASCII")
-      s_.Fail("expected ASCII or BINARY, found '" + mode.substr(0, 40) + "'");
+      s_.Fail("expected ASCII or BINARY, found '" + Printable(mode) + "'");
     std::string_view dataset_line = s_.Line();
     while (dataset_line.empty() && !s_.AtEnd()) dataset_line = s_.Line();
     TextScanner line_scanner(path_, dataset_line);
@@ -156,7 +156,7 @@ class VtkReader {
       } else {
         s_.Fail("expected a VTK section keyword (POINTS, " +
                 std::string(polydata_ ? "POLYGONS" : "CELLS, CELL_TYPES") +
-                ", POINT_DATA, ...), found '" + std::string(token.substr(0, 40)) + "'");
+                ", POINT_DATA, ...), found '" + Printable(token) + "'");
       }
     }
     Finish();
@@ -181,7 +181,7 @@ class VtkReader {
     }();
     for (const auto& t : kVtkTypes)
       if (lower == t.name) return t;
-    s_.Fail("unsupported VTK data type '" + std::string(name.substr(0, 40)) + "'");
+    s_.Fail("unsupported VTK data type '" + Printable(name) + "'");
   }
 
   // Reads `count` values of `type` (ASCII tokens or big-endian binary). When
@@ -299,7 +299,7 @@ class VtkReader {
         const std::string keyword = Upper(s_.Token());
         const char* expected = part == 0 ? "OFFSETS" : "CONNECTIVITY";
         if (keyword != expected)
-          s_.Fail(std::string("expected ") + expected + ", found '" + keyword.substr(0, 40) + "'");
+          s_.Fail(std::string("expected ") + expected + ", found '" + Printable(keyword) + "'");
         const VtkType& type = TypeNamed(s_.TokenOnLine());
         const int64_t n = part == 0 ? first : second;
         Count(n, binary_ ? type.bytes : 2, part == 0 ? "number of offsets" : "connectivity size");
