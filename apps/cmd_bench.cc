@@ -17,6 +17,7 @@ struct Bench {
 
 // Keep in step with README.md ("Benchmarks").
 const Bench kBenches[] = {
+    {"tracking", RunBenchTracking, "video decode, SURF detection and LK tracking speed"},
     {"cutting", RunBenchCutting, "beam cut: ours vs Bielser (growth, conditioning), event time"},
     {nullptr, nullptr, nullptr},  // end marker; keeps the table valid while it grows
 };

@@ -10,6 +10,7 @@ int RunEval(int argc, char** argv);
 int RunInfo(int argc, char** argv);
 
 // Benchmarks dispatched by RunBench (apps/bench_*.cc).
+int RunBenchTracking(int argc, char** argv);
 int RunBenchCutting(int argc, char** argv);
 
 }  // namespace arreg::cli

@@ -77,8 +77,9 @@ struct SpecularOptions {
 };
 
 struct FeatureTrackerOptions {
-  // Detector; max_keypoints is overridden by max_features.
-  SurfOptions surf;
+  // Detector. Endoscopic tissue is low-contrast, so the default Hessian
+  // threshold is 8 instead of SURF's usual 100; max_keypoints is ignored (max_features rules).
+  SurfOptions surf = SurfOptions{8.0};
   LucasKanadeOptions lk;
   OutlierFilterOptions outliers;
   SpecularOptions specular;
