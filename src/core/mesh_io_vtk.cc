@@ -226,7 +226,8 @@ class VtkReader {
       }
       s_.Seek(c.offset());
     } else {
-      values->reserve(static_cast<size_t>(count));
+      // Each ASCII value takes at least two bytes; never reserve more than that.
+      values->reserve(std::min(static_cast<size_t>(count), s_.remaining_bytes() / 2 + 1));
       for (int64_t i = 0; i < count; ++i) {
         const std::string_view t = s_.Token();
         if (t.empty())
