@@ -6,6 +6,7 @@
 #include <CGAL/Polygon_mesh_processing/distance.h>
 #include <CGAL/Surface_mesh.h>
 #include <cmath>
+#include <cstdio>
 
 #include "ar/eval/hausdorff.h"
 #include "core/mesh_generators.h"
@@ -75,6 +76,8 @@ void ExpectAgreesWithCgal(const SurfaceMesh& model, const SurfaceMesh& truth) {
   const auto np = CGAL::parameters::number_of_points_on_faces(50000).random_seed(7);
   const double cgal_ab = PMP::approximate_Hausdorff_distance<CGAL::Sequential_tag>(a, b, np);
   const double cgal_ba = PMP::approximate_Hausdorff_distance<CGAL::Sequential_tag>(b, a, np);
+  std::printf("model->gt: ours %.6f, CGAL %.6f; gt->model: ours %.6f, CGAL %.6f\n",
+              ours.max_model_to_gt, cgal_ab, ours.max_gt_to_model, cgal_ba);
   EXPECT_GT(cgal_ab, 0.1);
   EXPECT_NEAR(ours.max_model_to_gt, cgal_ab, 0.01 * cgal_ab);
   EXPECT_NEAR(ours.max_gt_to_model, cgal_ba, 0.01 * cgal_ba);
