@@ -235,11 +235,20 @@ float SurfDetector::Orientation(const SurfKeypoint& kp) const {
   // (sigma 2s); the orientation is that of the largest sum inside a sliding
   // pi/3 window (Bay et al. 2008, sec. 4.3).
   constexpr int kMaxSamples = 113;
-  std::array<float, kMaxSamples> angle, wx, wy;
+  // The Gaussian weight of sample (i, j) is exp(-(i^2 + j^2) s^2 / (2 (2s)^2)): independent of s.
+  static const std::array<float, 169> kWeights = [] {
+    std::array<float, 169> w{};
+    for (int i = -6; i <= 6; ++i)
+      for (int j = -6; j <= 6; ++j) w[(i + 6) * 13 + (j + 6)] = std::exp(-(i * i + j * j) / 8.f);
+    return w;
+  }();
+  struct Sample {
+    float angle, wx, wy;
+  };
+  std::array<Sample, 2 * kMaxSamples> samples;
   int n = 0;
   const float s = kp.scale_px;
   const int side = std::max(2, 2 * static_cast<int>(std::lround(2 * s)));
-  const float inv_two_sigma2 = 1.f / (2.f * (2.f * s) * (2.f * s));
   for (int i = -6; i <= 6; ++i) {
     for (int j = -6; j <= 6; ++j) {
       if (i * i + j * j >= 36) continue;
@@ -247,26 +256,37 @@ float SurfDetector::Orientation(const SurfKeypoint& kp) const {
       const int c = static_cast<int>(std::lround(kp.position_px.x + i * s));
       float dx, dy;
       Haar(r, c, side, &dx, &dy);
-      const float g = std::exp(-(i * i + j * j) * s * s * inv_two_sigma2);
-      wx[n] = g * dx;
-      wy[n] = g * dy;
-      angle[n] = std::atan2(wy[n], wx[n]);
-      ++n;
+      if (dx == 0 && dy == 0) continue;
+      const float g = kWeights[(i + 6) * 13 + (j + 6)];
+      samples[n++] = {cv::fastAtan2(dy, dx) * (kPi / 180.f), g * dx, g * dy};  // [0, 2pi)
     }
   }
+  if (n == 0) return 0.f;
+  // Sorted by angle and repeated one turn later, every window is a contiguous
+  // range: prefix sums give each window's sum in O(log n).
+  std::sort(samples.begin(), samples.begin() + n,
+            [](const Sample& a, const Sample& b) { return a.angle < b.angle; });
+  for (int k = 0; k < n; ++k) {
+    samples[n + k] = samples[k];
+    samples[n + k].angle += 2 * kPi;
+  }
+  std::array<float, 2 * kMaxSamples + 1> sum_x, sum_y;
+  sum_x[0] = sum_y[0] = 0;
+  for (int k = 0; k < 2 * n; ++k) {
+    sum_x[k + 1] = sum_x[k] + samples[k].wx;
+    sum_y[k + 1] = sum_y[k] + samples[k].wy;
+  }
+  auto first_at_or_after = [&](float angle) {
+    return static_cast<int>(std::lower_bound(samples.begin(), samples.begin() + 2 * n, angle,
+                                             [](const Sample& a, float v) { return a.angle < v; }) -
+                            samples.begin());
+  };
   float best_norm = -1, best_x = 0, best_y = 0;
   constexpr int kWindows = 42;
   for (int w = 0; w < kWindows; ++w) {
-    const float start = -kPi + w * (2 * kPi / kWindows);
-    float sx = 0, sy = 0;
-    for (int k = 0; k < n; ++k) {
-      float d = angle[k] - start;
-      if (d < 0) d += 2 * kPi;
-      if (d < kPi / 3) {
-        sx += wx[k];
-        sy += wy[k];
-      }
-    }
+    const float start = w * (2 * kPi / kWindows);
+    const int lo = first_at_or_after(start), hi = first_at_or_after(start + kPi / 3);
+    const float sx = sum_x[hi] - sum_x[lo], sy = sum_y[hi] - sum_y[lo];
     const float norm = sx * sx + sy * sy;
     if (norm > best_norm) {
       best_norm = norm;
