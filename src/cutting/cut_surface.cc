@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "cutting/predicates.h"
 
 namespace arreg::cutting {
 
@@ -72,6 +73,19 @@ CutSurface ExtrudePolyline(const RowMatX3d& polyline, const RowMatX3d& direction
     s.triangles.row(2 * i + 1) << 2 * i, 2 * i + 3, 2 * i + 1;
   }
   return s;
+}
+
+bool SegmentCrossesSurface(const CutSurface& surface, const Eigen::Vector3d& a,
+                           const Eigen::Vector3d& b) {
+  for (int f = 0; f < surface.num_triangles(); ++f) {
+    const Eigen::Vector3d p = surface.vertices.row(surface.triangles(f, 0)).transpose();
+    const Eigen::Vector3d q = surface.vertices.row(surface.triangles(f, 1)).transpose();
+    const Eigen::Vector3d r = surface.vertices.row(surface.triangles(f, 2)).transpose();
+    if (Orient3d(p, q, r, a) * Orient3d(p, q, r, b) >= 0) continue;
+    const int s0 = Orient3d(a, b, p, q), s1 = Orient3d(a, b, q, r), s2 = Orient3d(a, b, r, p);
+    if ((s0 >= 0 && s1 >= 0 && s2 >= 0) || (s0 <= 0 && s1 <= 0 && s2 <= 0)) return true;
+  }
+  return false;
 }
 
 }  // namespace arreg::cutting

@@ -35,4 +35,9 @@ CutSurface MakeGridSurface(const std::function<Eigen::Vector3d(double, double)>&
 CutSurface ExtrudePolyline(const RowMatX3d& polyline, const RowMatX3d& directions,
                            double depth_before, double depth_after);
 
+// True when the segment [a, b] crosses a triangle of S (endpoints strictly on
+// both sides of its plane; exact predicates).
+bool SegmentCrossesSurface(const CutSurface& surface, const Eigen::Vector3d& a,
+                           const Eigen::Vector3d& b);
+
 }  // namespace arreg::cutting
