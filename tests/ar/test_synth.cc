@@ -1,0 +1,331 @@
+// Tests of the synthetic scene generator: truth mechanics (derivatives,
+// incompressibility), meshing, cuts as real separations, and the written
+// ground truth (determinism, masks vs surfaces, cut opening).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <random>
+#include <set>
+#include <sstream>
+
+#include "ar/render/rasterizer.h"
+#include "ar/synth/generator.h"
+#include "ar/synth/neo_hookean.h"
+#include "ar/synth/progressive_cut.h"
+#include "ar/synth/scenarios.h"
+#include "ar/synth/shapes.h"
+#include "ar/synth/tissue_texture.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/mesh_io.h"
+#include "core/mesh_ops.h"
+#include "core/scene.h"
+#include "test_util.h"
+
+namespace arreg::synth {
+namespace {
+
+LabeledTetMesh SmallBox(const Eigen::Vector3d& size, double cell) {
+  BoxUnionMeshOptions o;
+  o.cell_mm = Eigen::Vector3d::Constant(cell);
+  return MeshBoxUnion({Eigen::AlignedBox3d(Eigen::Vector3d::Zero(), size)}, o);
+}
+
+TEST(NeoHookean, GradientAndHessianMatchFiniteDifferences) {
+  const LabeledTetMesh box = SmallBox({10, 10, 10}, 5);
+  NeoHookeanMaterial m;
+  m.poisson_ratio = 0.45;
+  const NeoHookeanEnergy e(box.mesh.vertices, box.mesh.tetrahedra, m);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-0.6, 0.6);
+  RowMatX3d x = box.mesh.vertices;
+  for (int i = 0; i < x.rows(); ++i)
+    for (int c = 0; c < 3; ++c) x(i, c) += u(rng) + 0.1 * x(i, c) * (c == 0);
+  const Eigen::VectorXd g = e.Gradient(x);
+  const Eigen::SparseMatrix<double> h = e.Hessian(x);
+  const double step = 1e-5;
+  double max_g_err = 0, max_g = 0, max_h_err = 0, max_h = 0;
+  for (int d = 0; d < 3 * x.rows(); ++d) {
+    RowMatX3d xp = x, xm = x;
+    xp(d / 3, d % 3) += step;
+    xm(d / 3, d % 3) -= step;
+    const double fd = (e.Value(xp) - e.Value(xm)) / (2 * step);
+    max_g_err = std::max(max_g_err, std::abs(fd - g[d]));
+    max_g = std::max(max_g, std::abs(g[d]));
+    const Eigen::VectorXd fd_col = (e.Gradient(xp) - e.Gradient(xm)) / (2 * step);
+    const Eigen::VectorXd col = h.col(d);
+    max_h_err = std::max(max_h_err, (fd_col - col).cwiseAbs().maxCoeff());
+    max_h = std::max(max_h, col.cwiseAbs().maxCoeff());
+  }
+  EXPECT_LT(max_g_err, 1e-6 * max_g);
+  EXPECT_LT(max_h_err, 1e-6 * max_h);
+  // The Hessian is symmetric.
+  EXPECT_LT((Eigen::MatrixXd(h) - Eigen::MatrixXd(h).transpose()).cwiseAbs().maxCoeff(),
+            1e-9 * max_h);
+}
+
+TEST(NeoHookean, RigidMotionsAreFreeOfEnergyAndForce) {
+  const LabeledTetMesh box = SmallBox({10, 5, 5}, 2.5);
+  const NeoHookeanEnergy e(box.mesh.vertices, box.mesh.tetrahedra, NeoHookeanMaterial());
+  const Eigen::Matrix3d r =
+      Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  RowMatX3d x = (box.mesh.vertices * r.transpose()).rowwise() + Eigen::RowVector3d(4, -2, 9);
+  EXPECT_NEAR(e.Value(x), 0.0, 1e-6);
+  EXPECT_LT(e.Gradient(x).cwiseAbs().maxCoeff(), 1e-6);
+}
+
+TEST(NeoHookean, KeepsVolumeWithinTwoPercentAt186PercentStretch) {
+  const LabeledTetMesh bar = SmallBox({20, 20, 4}, 2);
+  const NeoHookeanEnergy e(bar.mesh.vertices, bar.mesh.tetrahedra, NeoHookeanMaterial());
+  std::vector<bool> fixed(bar.mesh.num_vertices());
+  for (int v = 0; v < bar.mesh.num_vertices(); ++v)
+    fixed[v] = bar.mesh.vertices(v, 1) <= 1e-9 || bar.mesh.vertices(v, 1) >= 20 - 1e-9;
+  QuasiStaticSolver solver(&e, fixed);
+  RowMatX3d x = bar.mesh.vertices;
+  for (int step = 1; step <= 10; ++step) {
+    RowMatX3d targets = bar.mesh.vertices;
+    for (int v = 0; v < targets.rows(); ++v)
+      if (targets(v, 1) >= 20 - 1e-9) targets(v, 1) += 0.086 * step * 20;
+    const QuasiStaticSummary s = solver.Solve(targets, &x);
+    ASSERT_TRUE(s.converged) << "step " << step << ": " << s.message;
+  }
+  const Eigen::VectorXd j = e.VolumeRatios(x);
+  const Eigen::VectorXd v0 = TetVolumes(bar.mesh);
+  const double ratio = j.dot(v0) / v0.sum();
+  EXPECT_NEAR(ratio, 1.0, 0.02);
+  EXPECT_GT(j.minCoeff(), 0.5);
+  // The middle of the bar narrows (Poisson effect): it is really stretched.
+  double min_x = 1e9, max_x = -1e9;
+  for (int v = 0; v < x.rows(); ++v)
+    if (std::abs(bar.mesh.vertices(v, 1) - 10) < 1e-9) {
+      min_x = std::min(min_x, x(v, 0));
+      max_x = std::max(max_x, x(v, 0));
+    }
+  EXPECT_LT(max_x - min_x, 20 * 0.85);
+}
+
+TEST(Shapes, BoxUnionIsAClosedMeshOfTheRightVolume) {
+  for (int per_cell : {5, 6}) {
+    BoxUnionMeshOptions o;
+    o.cell_mm = Eigen::Vector3d(5, 5, 4);
+    o.tets_per_cell = per_cell;
+    const LabeledTetMesh band =
+        MeshBoxUnion({Eigen::AlignedBox3d(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(100, 100, 8)),
+                      Eigen::AlignedBox3d(Eigen::Vector3d(30, -20, 0), Eigen::Vector3d(70, 0, 8))},
+                     o);
+    EXPECT_EQ(band.mesh.num_tetrahedra(), per_cell * (20 * 20 * 2 + 8 * 4 * 2));
+    const Eigen::VectorXd volumes = TetVolumes(band.mesh);
+    EXPECT_GT(volumes.minCoeff(), 0);
+    EXPECT_NEAR(volumes.sum(), 100 * 100 * 8 + 40 * 20 * 8, 1e-6);
+    SurfaceMesh boundary;
+    boundary.vertices = band.mesh.vertices;
+    boundary.faces = BoundaryFaces(band.mesh.tetrahedra);
+    EXPECT_NEAR(EnclosedVolume(boundary), volumes.sum(), 1e-6);  // closed and outward
+  }
+}
+
+TEST(Shapes, KidneyMeshHasTheOrganAndTheInternalStructure) {
+  const KidneyShape shape;
+  KidneyMeshOptions o;
+  o.cell_size_mm = o.facet_size_mm = 5;
+  o.facet_distance_mm = 0.8;
+  const LabeledTetMesh kidney = MeshKidney(shape, o);
+  const Eigen::VectorXd volumes = TetVolumes(kidney.mesh);
+  EXPECT_GT(volumes.minCoeff(), 0);
+  double internal = 0;
+  for (int t = 0; t < kidney.labels.size(); ++t) internal += kidney.labels[t] == 2 ? volumes[t] : 0;
+  const double ellipsoid = 4.0 / 3.0 * M_PI * 27.5 * 5.5 * 13.5;
+  EXPECT_NEAR(internal / ellipsoid, 1.0, 0.12);
+  // Extent of the organ along its axes.
+  const Eigen::Vector3d extent =
+      kidney.mesh.vertices.colwise().maxCoeff() - kidney.mesh.vertices.colwise().minCoeff();
+  EXPECT_NEAR(extent.x(), 100, 4);
+  EXPECT_NEAR(extent.y(), 27, 3);
+  EXPECT_GT(extent.z(), 50);
+  EXPECT_LT(extent.z(), 70);
+}
+
+TEST(ProgressiveCut, PartialCutDuplicatesOnlyTheVerticesBehindTheFront) {
+  LabeledTetMesh box = SmallBox({20, 20, 10}, 5);
+  CutSurfaceSpec spec;
+  spec.level_set = [](const Eigen::Vector3d& p) { return p.y() - 10; };
+  spec.progress_mm = [](const Eigen::Vector3d& p) {
+    return p.x() <= 20 ? p.x() : std::numeric_limits<double>::infinity();
+  };
+  ProgressiveCut cut(&box.mesh, spec);
+  EXPECT_EQ(cut.num_faces(), 4 * 2 * 2);  // 4 x 2 grid squares on the plane, 2 triangles each
+  EXPECT_EQ(cut.ComputeSplit().origin.size(), static_cast<size_t>(box.mesh.num_vertices()));
+  // Half way: the plane's vertices at x = 0 and 5 split (2 x 3 of them); x = 10 is the front.
+  EXPECT_TRUE(cut.Advance(10));
+  ProgressiveCut::Split half = cut.ComputeSplit();
+  EXPECT_EQ(half.origin.size(), static_cast<size_t>(box.mesh.num_vertices() + 6));
+  TetMesh half_mesh{box.mesh.vertices, half.tetrahedra, {}, {}};
+  half_mesh.vertices.resize(half.origin.size(), 3);
+  for (size_t v = 0; v < half.origin.size(); ++v)
+    half_mesh.vertices.row(v) = box.mesh.vertices.row(half.origin[v]);
+  EXPECT_EQ(ConnectedComponents(half_mesh, Adjacency::kVertex).maxCoeff(), 0);
+  // All the way through: two pieces, every vertex of the plane duplicated.
+  EXPECT_TRUE(cut.Advance(100));
+  EXPECT_FALSE(cut.Advance(100));
+  ProgressiveCut::Split full = cut.ComputeSplit();
+  EXPECT_EQ(full.origin.size(), static_cast<size_t>(box.mesh.num_vertices() + 15));
+  TetMesh full_mesh{RowMatX3d(full.origin.size(), 3), full.tetrahedra, {}, {}};
+  for (size_t v = 0; v < full.origin.size(); ++v)
+    full_mesh.vertices.row(v) = box.mesh.vertices.row(full.origin[v]);
+  EXPECT_EQ(ConnectedComponents(full_mesh, Adjacency::kVertex).maxCoeff(), 1);
+}
+
+TEST(ProgressiveCut, SnapsVerticesOntoACurvedSurface) {
+  LabeledTetMesh box = SmallBox({40, 40, 8}, 4);
+  CutSurfaceSpec spec;
+  spec.level_set = [](const Eigen::Vector3d& p) {
+    return p.y() - 20 - 5 * std::sin(2 * M_PI * p.x() / 40);
+  };
+  spec.progress_mm = [](const Eigen::Vector3d& p) { return p.x(); };
+  const RowMatX3d before = box.mesh.vertices;
+  ProgressiveCut cut(&box.mesh, spec);
+  EXPECT_GT(cut.num_snapped_vertices(), 10);
+  // The staircase of faces between the two sides moves towards the surface: the
+  // snapped vertices lie on it and the mean distance drops by more than a quarter.
+  const RowMatX3i faces = cut.FaceTriangles();
+  double before_sum = 0, after_sum = 0;
+  std::set<int> on_surface;
+  for (int f = 0; f < faces.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      before_sum += std::abs(spec.level_set(before.row(faces(f, k)).transpose()));
+      const double phi = spec.level_set(box.mesh.vertices.row(faces(f, k)).transpose());
+      after_sum += std::abs(phi);
+      if (std::abs(phi) < 1e-6) on_surface.insert(faces(f, k));
+    }
+  EXPECT_GE(static_cast<int>(on_surface.size()), cut.num_snapped_vertices());
+  EXPECT_LT(after_sum, 0.75 * before_sum);
+  EXPECT_GT(TetVolumes(box.mesh).minCoeff(), 0);
+}
+
+TEST(TissueTexture, IsDeterministicPerSeedAndVaries) {
+  TissueTextureOptions o;
+  o.seed = 7;
+  const TissueTexture a(o), b(o);
+  o.seed = 8;
+  const TissueTexture c(o);
+  int differ = 0;
+  double min_lum = 1, max_lum = 0;
+  for (int i = 0; i < 200; ++i) {
+    const Eigen::Vector3d p(1.37 * i, 0.71 * i, 0.3 * i);
+    EXPECT_EQ(a.Albedo(p), b.Albedo(p));
+    differ += (a.Albedo(p) - c.Albedo(p)).norm() > 1e-3;
+    min_lum = std::min(min_lum, static_cast<double>(a.Albedo(p).sum()));
+    max_lum = std::max(max_lum, static_cast<double>(a.Albedo(p).sum()));
+  }
+  EXPECT_GT(differ, 100);
+  EXPECT_GT(max_lum - min_lum, 0.5);  // contrast for tracking
+}
+
+std::string Slurp(const std::string& path) { return ReadFileToString(path); }
+
+SynthOptions SmallRun(const std::string& scenario, const std::string& dir) {
+  SynthOptions o;
+  o.scenario = scenario;
+  o.out_dir = dir;
+  o.frames = 11;
+  o.width = 160;
+  o.height = 128;
+  o.surface_every_k = 5;
+  o.supersampling = 1;
+  return o;
+}
+
+TEST(Generator, SameSeedGivesIdenticalGroundTruthAndMasksMatchSurfaces) {
+  const std::string d1 = testing::ScratchDir("synth_det_1"),
+                    d2 = testing::ScratchDir("synth_det_2");
+  const SynthSummary s1 = GenerateSyntheticScene(SmallRun("band-stretch", d1));
+  const SynthSummary s2 = GenerateSyntheticScene(SmallRun("band-stretch", d2));
+  EXPECT_EQ(s1.unconverged_frames, 0);
+  EXPECT_GE(s1.truth_tetrahedra, 4 * s1.model_tetrahedra);
+  for (const std::string rel : {"gt/meta.json", "gt/cut.json", "gt/surface/000005.obj",
+                                "gt/surface/000010.obj", "gt/masks/000005.png", "model.vtk"})
+    EXPECT_EQ(Slurp(d1 + "/" + rel), Slurp(d2 + "/" + rel)) << rel;
+  // Truth keeps its volume through the 186 % stretch (frame 5 is the peak).
+  EXPECT_LT(s1.max_volume_change, 0.02);
+  EXPECT_NEAR(s1.volume_ratio[5], 1.0, 0.02);
+  // The scene file reads back and its camera rasterises the GT surface into the GT mask.
+  const Scene scene = ReadScene(d1 + "/scene.json");
+  EXPECT_EQ(scene.camera.width, 160);
+  const TetMesh model = ReadTetMesh(scene.model_mesh_path);
+  EXPECT_EQ(model.num_tetrahedra(), s1.model_tetrahedra);
+  for (int frame : {0, 5, 10}) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "%06d", frame);
+    const SurfaceMesh surface = ReadSurfaceMesh(d1 + "/gt/surface/" + name + ".obj");
+    render::RasterCamera rc;
+    rc.width = scene.camera.width;
+    rc.height = scene.camera.height;
+    rc.fx = scene.camera.fx;
+    rc.fy = scene.camera.fy;
+    rc.cx = scene.camera.cx;
+    rc.cy = scene.camera.cy;
+    rc.camera_from_world = scene.camera.camera_from_world;
+    const cv::Mat expected = render::RenderMask(rc, surface.vertices, surface.faces);
+    const cv::Mat mask = cv::imread(d1 + "/gt/masks/" + name + ".png", cv::IMREAD_UNCHANGED);
+    ASSERT_EQ(mask.type(), CV_8U);
+    EXPECT_EQ(cv::countNonZero(mask != expected), 0) << "frame " << frame;
+    EXPECT_GT(cv::countNonZero(mask), 500) << "frame " << frame;
+  }
+  // Stretching makes the silhouette taller between frames 0 and 5 (186 % peak).
+  const cv::Mat m0 = cv::imread(d1 + "/gt/masks/000000.png", cv::IMREAD_UNCHANGED);
+  const cv::Mat m5 = cv::imread(d1 + "/gt/masks/000005.png", cv::IMREAD_UNCHANGED);
+  EXPECT_GT(cv::boundingRect(m5).height, 1.4 * cv::boundingRect(m0).height);
+  EXPECT_TRUE(FileExists(d1 + "/video.mp4"));
+}
+
+TEST(Generator, PrecutOpensOverMostOfItsLength) {
+  const std::string d = testing::ScratchDir("synth_precut");
+  SynthOptions o = SmallRun("band-precut-side", d);
+  o.write_video = false;
+  o.frames = 6;  // frame 5 is the peak of the stretch... and the last frame here
+  const SynthSummary s = GenerateSyntheticScene(o);
+  EXPECT_EQ(s.unconverged_frames, 0);
+  EXPECT_EQ(s.cut_first_frame, 0);
+  EXPECT_GE(s.cut_open_fraction, 0.5);
+  EXPECT_GT(s.max_cut_opening_mm, 2.0);
+  EXPECT_GT(s.final_truth_vertices, s.truth_vertices);
+  EXPECT_LT(s.max_volume_change, 0.02);
+  const std::string cut = Slurp(d + "/gt/cut.json");
+  EXPECT_NE(cut.find("cut_surface.obj"), std::string::npos);
+  const SurfaceMesh surface = ReadSurfaceMesh(d + "/gt/cut_surface.obj");
+  EXPECT_NEAR(SurfaceArea(surface), 40 * 8, 1e-6);  // the slit: 40 mm x 8 mm
+}
+
+TEST(Generator, CutWhileFilmedOpensProgressively) {
+  const std::string d = testing::ScratchDir("synth_cut_v");
+  SynthOptions o = SmallRun("band-cut-v", d);
+  o.write_video = false;
+  o.frames = 21;
+  const SynthSummary s = GenerateSyntheticScene(o);
+  EXPECT_EQ(s.unconverged_frames, 0);
+  // The cut starts at t = 0.3 and the tear ends at t = 0.9.
+  EXPECT_GE(s.cut_first_frame, 6);
+  EXPECT_LE(s.cut_last_frame, 18);
+  EXPECT_GT(s.cut_last_frame, s.cut_first_frame + 5);
+  EXPECT_GE(s.cut_open_fraction, 0.5);
+}
+
+TEST(Generator, RejectsUnknownScenarioAndBadOptions) {
+  SynthOptions o;
+  o.out_dir = testing::ScratchDir("synth_bad");
+  o.scenario = "liver-explode";
+  EXPECT_THROW(GenerateSyntheticScene(o), Error);
+  o.scenario = "band-stretch";
+  o.frames = 1;
+  EXPECT_THROW(GenerateSyntheticScene(o), Error);
+  o.frames = 10;
+  o.width = 641;
+  EXPECT_THROW(GenerateSyntheticScene(o), Error);
+}
+
+}  // namespace
+}  // namespace arreg::synth
