@@ -8,6 +8,7 @@ namespace arreg::cli {
 int RunBench(int argc, char** argv);
 int RunEval(int argc, char** argv);
 int RunInfo(int argc, char** argv);
+int RunSynth(int argc, char** argv);
 
 // Benchmarks dispatched by RunBench (apps/bench_*.cc).
 int RunBenchTracking(int argc, char** argv);
