@@ -19,6 +19,7 @@ struct Bench {
 const Bench kBenches[] = {
     {"tracking", RunBenchTracking, "video decode, SURF detection and LK tracking speed"},
     {"cutting", RunBenchCutting, "beam cut: ours vs Bielser (growth, conditioning), event time"},
+    {"detection", RunBenchDetection, "cut detection per frame (700 features, ~9,000 pairs)"},
     {nullptr, nullptr, nullptr},  // end marker; keeps the table valid while it grows
 };
 

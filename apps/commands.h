@@ -13,5 +13,6 @@ int RunSynth(int argc, char** argv);
 // Benchmarks dispatched by RunBench (apps/bench_*.cc).
 int RunBenchTracking(int argc, char** argv);
 int RunBenchCutting(int argc, char** argv);
+int RunBenchDetection(int argc, char** argv);
 
 }  // namespace arreg::cli
