@@ -113,11 +113,10 @@ std::string MeshInfoToText(const MeshInfo& info) {
   std::ostringstream os;
   os << info.path << " (" << info.format << ")\n";
   os << "  vertices            " << info.vertices << "\n";
-  os << "  elements           ";
-  for (const auto& [kind, count] : info.element_counts) os << " " << count << " " << kind << ",";
-  if (info.element_counts.empty()) os << " none";
-  os.seekp(-1, std::ios_base::cur);
-  os << "\n";
+  std::string elements;
+  for (const auto& [kind, count] : info.element_counts)
+    elements += (elements.empty() ? "" : ", ") + std::to_string(count) + " " + kind;
+  os << "  elements            " << (elements.empty() ? "none" : elements) << "\n";
   if (info.tetrahedra > 0) {
     const TetQualitySummary& q = info.quality;
     os << "  tetrahedra          " << info.tetrahedra << (info.quadratic ? " (quadratic)" : "")

@@ -10,6 +10,7 @@
 
 #include "core/file_util.h"
 #include "core/mesh_generators.h"
+#include "core/mesh_info.h"
 #include "core/mesh_io.h"
 #include "core/mesh_ops.h"
 #include "test_util.h"
@@ -79,6 +80,36 @@ TEST(CmdInfo, JsonForTetAndSurfaceFiles) {
   WriteFileAtomic(dir + "/bad.off", [](std::ostream& os) { os << "OFF\n3 1 0\n0 0 0\n"; });
   RunArreg("info " + dir + "/bad.off", &status);
   EXPECT_EQ(status, 1);
+}
+
+TEST(MeshInfo, DescribesTetMeshAndOpenSurface) {
+  // Library-level check of the same facts (runs without the binary).
+  const std::string dir = testing::ScratchDir("mesh_info");
+  const TetMesh box = MakeBoxTetMesh(Eigen::Vector3d(2, 2, 2), Eigen::Vector3i(2, 2, 2));
+  WriteTetMesh(dir + "/box.vtk", box);
+  const MeshInfo info = DescribeMeshFile(dir + "/box.vtk");
+  EXPECT_EQ(info.vertices, 27);
+  EXPECT_EQ(info.tetrahedra, 48);
+  EXPECT_EQ(info.element_counts.at("tetrahedron"), 48);
+  EXPECT_NEAR(info.volume, 8.0, 1e-12);
+  EXPECT_NEAR(info.quality.min_dihedral_angle_rad, std::acos(-1.0) / 4, 1e-12);  // Kuhn: 45 deg
+  ASSERT_TRUE(info.enclosed_volume.has_value());
+  EXPECT_NEAR(*info.enclosed_volume, 8.0, 1e-12);
+  const std::string text = MeshInfoToText(info);
+  EXPECT_NE(text.find("48 tetrahedron"), std::string::npos) << text;
+  EXPECT_NE(text.find("Euler characteristic 2"), std::string::npos) << text;
+  const nlohmann::json j = MeshInfoToJson(info);
+  for (const char* key : {"vertices", "tetrahedra", "triangles", "volume"})
+    EXPECT_TRUE(j.contains(key)) << key;
+
+  SurfaceMesh open = ExtractBoundary(box);
+  open.faces.conservativeResize(open.num_faces() - 2, 3);
+  WriteSurfaceMesh(dir + "/open.off", open);
+  const MeshInfo o = DescribeMeshFile(dir + "/open.off");
+  EXPECT_FALSE(o.enclosed_volume.has_value());
+  EXPECT_EQ(o.surface.num_boundary_edges, 4);
+  EXPECT_TRUE(MeshInfoToJson(o)["volume"].is_null());
+  EXPECT_NE(MeshInfoToText(o).find("4 boundary edges"), std::string::npos);
 }
 
 }  // namespace
