@@ -497,7 +497,8 @@ PinholeCamera ReadCameraOpenCvYaml(const std::string& text, const std::string& f
 
 PinholeCamera ReadCameraFile(const std::string& path) {
   const std::string text = ReadFileToString(path);
-  const std::size_t first = text.find_first_not_of(" \t\r\n");
+  const std::size_t start = text.rfind("\xEF\xBB\xBF", 0) == 0 ? 3 : 0;  // UTF-8 byte-order mark
+  const std::size_t first = text.find_first_not_of(" \t\r\n", start);
   if (first != std::string::npos && text[first] == '{') {
     const nlohmann::json j = ParseJsonText(text, path);
     JsonObjectReader reader(j, path, "");

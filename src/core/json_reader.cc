@@ -190,6 +190,11 @@ nlohmann::json ParseJsonText(const std::string& text, const std::string& file) {
         R"(^\[json\.exception\.[a-z_]+\.\d+\]\s*(parse error( at line \d+, column \d+)?:?\s*)?)");
     const std::string detail = std::regex_replace(std::string(e.what()), kPrefix, "");
     throw Error(file, LineColumn(text, e.byte), "JSON syntax error: " + detail);
+  } catch (const json::exception& e) {
+    // E.g. a number too large for a double (out_of_range.406).
+    static const std::regex kPrefix(R"(^\[json\.exception\.[a-z_]+\.\d+\]\s*)");
+    throw Error(file, "",
+                "invalid JSON: " + std::regex_replace(std::string(e.what()), kPrefix, ""));
   }
 }
 

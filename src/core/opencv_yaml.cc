@@ -433,6 +433,8 @@ const YamlNode* YamlNode::Find(const std::string& key) const {
 }
 
 YamlNode ParseOpenCvYaml(const std::string& text, const std::string& file) {
+  // Editors on Windows may prepend a UTF-8 byte-order mark.
+  if (text.rfind("\xEF\xBB\xBF", 0) == 0) return ParseOpenCvYaml(text.substr(3), file);
   Parser parser(text, file);
   return parser.ParseDocument();
 }

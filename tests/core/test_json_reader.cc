@@ -1,7 +1,9 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <random>
 
+#include "core/camera.h"
 #include "core/error.h"
 #include "core/json_reader.h"
 #include "core/opencv_yaml.h"
@@ -157,6 +159,12 @@ TEST(ParseJson, SyntaxErrorsGiveLineAndColumn) {
   EXPECT_EQ(msg.find("[json.exception"), std::string::npos) << msg;
 }
 
+TEST(ParseJson, NumberOverflowIsAnArregError) {
+  const std::string msg = ErrorMessage([] { ParseJsonText(R"({"fx": 1e999})", "o.json"); });
+  EXPECT_NE(msg.find("o.json"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("1e999"), std::string::npos) << msg;
+}
+
 TEST(ParseJson, DuplicateKeysAreErrors) {
   const std::string msg = ErrorMessage([] {
     ParseJsonText(R"({"camera": {"fx": 1, "fy": 2}, "list": [{"a": 1}, {"a": 2, "a": 3}]})",
@@ -226,6 +234,14 @@ ignored: after the document end
   EXPECT_EQ(root.Find("ignored"), nullptr);
 }
 
+TEST(OpenCvYaml, ByteOrderMarkAndCrLfAreAccepted) {
+  const YamlNode root =
+      ParseOpenCvYaml("\xEF\xBB\xBF%YAML:1.0\r\n---\r\na: 1\r\nb: [2,\r\n 3]\r\n", "w.yaml");
+  EXPECT_EQ(root.Find("a")->scalar, "1");
+  EXPECT_EQ(YamlToMatrix(*root.Find("b"), "w.yaml", "b")(1, 0), 3.0);
+  EXPECT_EQ(root.Find("b")->line, 4);
+}
+
 TEST(OpenCvYaml, ErrorsNameTheLine) {
   EXPECT_NE(ErrorMessage([] {
               ParseOpenCvYaml("a: 1\nb 2\n", "e.yaml");
@@ -258,6 +274,71 @@ TEST(OpenCvYaml, ErrorsNameTheLine) {
               YamlToMatrix(*root.Find("m"), "e.yaml", "m");
             }).find("e.yaml: line 5: m.data: has 3 numbers"),
             std::string::npos);
+}
+
+// Truncated or corrupted calibration files must give arreg::Error (or parse),
+// never another exception type or a crash (the sanitizer build checks memory).
+TEST(OpenCvYaml, CorruptedInputOnlyEverThrowsArregError) {
+  const std::string good = R"(%YAML:1.0
+---
+image_width: 640
+image_height: 480
+camera_matrix: !!opencv-matrix
+   rows: 3
+   cols: 3
+   dt: d
+   data: [ 535.9, 0., 342.3, 0.,
+       535.9, 235.6, 0., 0., 1. ]
+distortion_coefficients: {rows: 5, cols: 1, dt: d, data: [ -0.27, -0.04, 0.0018, -0.0003, 0.24 ]}
+people:
+  - name: 'a''b'
+    age: "4"
+)";
+  EXPECT_NO_THROW(ReadCameraOpenCvYaml(good, "good.yaml"));
+  std::mt19937 rng(1);
+  const std::string alphabet = " :-[]{},'\"#!\n\t0a.";
+  int errors = 0, parsed = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    std::string text = good;
+    if (trial < static_cast<int>(good.size())) {
+      text = good.substr(0, trial);
+    } else {
+      const int edits = 1 + static_cast<int>(rng() % 4);
+      for (int e = 0; e < edits; ++e) text[rng() % text.size()] = alphabet[rng() % alphabet.size()];
+    }
+    try {
+      ReadCameraOpenCvYaml(text, "fuzz.yaml");
+      ++parsed;
+    } catch (const Error&) {
+      ++errors;
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << "non-arreg exception " << e.what() << " for:\n" << text;
+    }
+  }
+  EXPECT_GT(errors, 0);
+  EXPECT_GT(parsed, 0);
+}
+
+TEST(ParseJson, CorruptedCameraJsonOnlyEverThrowsArregError) {
+  const std::string good =
+      R"({"width": 640, "height": 480, "fx": 500, "fy": 500, "cx": 319.5, "cy": 239.5,
+          "distortion": [-0.1, 0.01, 0, 0, 0],
+          "camera_from_world": {"rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "translation_mm": [0, 0, 0]}})";
+  std::mt19937 rng(2);
+  const std::string alphabet = " :[]{},\"0-.e";
+  for (int trial = 0; trial < 2000; ++trial) {
+    std::string text = trial < static_cast<int>(good.size()) ? good.substr(0, trial) : good;
+    if (trial >= static_cast<int>(good.size()))
+      text[rng() % text.size()] = alphabet[rng() % alphabet.size()];
+    try {
+      const nlohmann::json j = ParseJsonText(text, "fuzz.json");
+      JsonObjectReader r(j, "fuzz.json", "");
+      ReadCameraJson(r);
+    } catch (const Error&) {
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << "non-arreg exception " << e.what() << " for:\n" << text;
+    }
+  }
 }
 
 }  // namespace
