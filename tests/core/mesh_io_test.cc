@@ -96,6 +96,20 @@ TEST(MeshIoShared, OpenHelpStl) {
   EXPECT_EQ(ReadMeshFile(liver).format, "stl binary");  // its header starts like "COLOR="
 }
 
+TEST(MeshIoShared, SofaLiverSurfaceMatchesItsVolumeMesh) {
+  // SOFA ships liver.obj as the visual surface of liver.msh: same 181 points,
+  // and the enclosed volume agrees with the tetrahedra within 0.1 %.
+  ARREG_REQUIRE_SHARED(obj, "meshes/sofa/liver.obj");
+  ARREG_REQUIRE_SHARED(msh, "meshes/sofa/liver.msh");
+  const SurfaceMesh surface = ReadSurfaceMesh(obj);
+  TetMesh mesh = ReadTetMesh(msh);
+  FixOrientation(&mesh);
+  EXPECT_EQ(surface.num_vertices(), mesh.num_vertices());
+  EXPECT_TRUE(AnalyzeSurface(surface).closed_oriented_manifold());
+  const double tet_volume = TetVolumes(mesh).sum();
+  EXPECT_NEAR(EnclosedVolume(surface), tet_volume, 1e-3 * tet_volume);
+}
+
 TEST(MeshIoShared, SofaObjWithUvs) {
   ARREG_REQUIRE_SHARED(path, "meshes/sofa/liver-smoothUV.obj");
   const SurfaceMesh s = ReadSurfaceMesh(path);
