@@ -334,9 +334,9 @@ TEST(TetCutter, GrowthMatchesTheTheoreticalAnalysis) {
   EXPECT_GT(bielser_t / crossed, ours_t / crossed * 1.5);
 }
 
-// Random planes through the SOFA liver (curved boundary: boundary edges are
-// bisected, never flipped, so the volume is kept).
-TEST(TetCutter, LiverRandomPlanesKeepInvariants) {
+// Random planes (full and partial) and spheres through the SOFA liver (curved
+// boundary: boundary edges are bisected, never flipped, so the volume is kept).
+TEST(TetCutter, LiverRandomSurfacesKeepInvariants) {
   ARREG_REQUIRE_SHARED(path, "meshes/sofa/liver.msh");
   TetMesh liver = ReadTetMesh(path);
   FixOrientation(&liver);
@@ -356,14 +356,23 @@ TEST(TetCutter, LiverRandomPlanesKeepInvariants) {
     opt.snap_epsilon = 0.1 * (i % 4);
     // Half of the cases are partial: S covers only half of the plane.
     const double half = box.size().norm();
+    // Every fifth case is a sphere (curved S) through the liver.
+    const double radius = (0.2 + 0.5 * u(rng)) * half;
+    const auto sphere = [&](double a, double b) {
+      const double phi = 2 * M_PI * a, theta = M_PI * b;
+      return Eigen::Vector3d(p + radius * Eigen::Vector3d(std::sin(theta) * std::cos(phi),
+                                                          std::sin(theta) * std::sin(phi),
+                                                          std::cos(theta)));
+    };
     const CutSurface s =
-        i % 2 ? MakePlaneSurface(p, n, half, half, {1, 0, 0})
-              : MakeGridSurface(
-                    [&](double a, double b) {
-                      const Eigen::Vector3d e1 = n.unitOrthogonal(), e2 = n.cross(e1);
-                      return Eigen::Vector3d(p + (2 * a - 1) * half * e1 + b * half * e2);
-                    },
-                    4, 4);
+        i % 5 == 4 ? MakeGridSurface(sphere, 24, 12)
+        : i % 2    ? MakePlaneSurface(p, n, half, half, {1, 0, 0})
+                   : MakeGridSurface(
+                      [&](double a, double b) {
+                        const Eigen::Vector3d e1 = n.unitOrthogonal(), e2 = n.cross(e1);
+                        return Eigen::Vector3d(p + (2 * a - 1) * half * e1 + b * half * e2);
+                      },
+                      4, 4);
     const CutSummary sum = m.Cut(s, opt);
     rejected += sum.status == CutStatus::kRejected;
     cut += sum.status == CutStatus::kCut;
