@@ -98,14 +98,25 @@ ProgressiveCut::ProgressiveCut(TetMesh* rest_mesh, const CutSurfaceSpec& spec,
       const Eigen::Vector3d p = x.row(v).transpose();
       const double phi = spec.level_set(p);
       if (phi == 0) continue;
-      const double h = 1e-4;
-      Eigen::Vector3d grad;
-      for (int c = 0; c < 3; ++c) {
-        const Eigen::Vector3d e = h * Eigen::Vector3d::Unit(c);
-        grad[c] = (spec.level_set(p + e) - spec.level_set(p - e)) / (2 * h);
+      // Newton projection onto the zero set (gradient by central differences).
+      Eigen::Vector3d moved = p;
+      bool ok_projection = true;
+      for (int iter = 0; iter < 20; ++iter) {
+        const double value = spec.level_set(moved);
+        if (std::abs(value) < 1e-12) break;
+        const double h = 1e-5;
+        Eigen::Vector3d grad;
+        for (int c = 0; c < 3; ++c) {
+          const Eigen::Vector3d e = h * Eigen::Vector3d::Unit(c);
+          grad[c] = (spec.level_set(moved + e) - spec.level_set(moved - e)) / (2 * h);
+        }
+        if (grad.squaredNorm() < 1e-20) {
+          ok_projection = false;
+          break;
+        }
+        moved -= value * grad / grad.squaredNorm();
       }
-      if (grad.squaredNorm() < 1e-20) continue;
-      const Eigen::Vector3d moved = p - phi * grad / grad.squaredNorm();
+      if (!ok_projection || std::abs(spec.level_set(moved)) > 1e-9) continue;
       double shortest = std::numeric_limits<double>::infinity();
       for (int t : incident[v])
         for (int k = 0; k < 4; ++k)
