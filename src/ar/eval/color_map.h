@@ -28,7 +28,7 @@ struct ColorMapImageOptions {
   double max_distance = 1.0;  // distance at the top of the scale (scene units, mm); default 1
   std::string title;          // drawn at the top left; default empty
   int supersampling = 2;      // anti-aliasing factor of the rasterizer, 1..8; default 2
-  int legend_width_px = 110;  // width of the colour-bar panel added on the right; default 110
+  int legend_width_px = 150;  // width of the colour-bar panel added on the right; default 150
   void Check() const;
 };
 

@@ -281,7 +281,8 @@ RunEvaluation EvaluateRun(const std::string& run_dir, const std::string& gt_dir,
           std::string(kind) == "surface" ? ev.frames[f].surface : ev.frames[f].internal;
       double scale = options.color_map_max_mm;
       if (scale <= 0.0) scale = figures ? figures->max : h.max;
-      if (!(scale > 0.0)) scale = 1.0;  // identical surfaces: any scale shows zero
+      // Identical surfaces (distances at rounding level): any scale shows zero.
+      if (!(scale > 1e-9)) scale = 1.0;
       ev.distance_fields.push_back(
           {std::string(kind) + "_model_to_gt", f, model, h.model_vertex_distances, scale});
       ev.distance_fields.push_back(

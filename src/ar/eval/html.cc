@@ -88,8 +88,8 @@ std::string TickLabel(double v, double step) {
 std::string SvgLinePlot(const std::string& id, const std::string& title, const std::string& x_label,
                         const std::string& y_label, const std::vector<PlotSeries>& series,
                         std::optional<double> y_min, std::optional<double> y_max) {
-  constexpr double kWidth = 900, kHeight = 330;
-  constexpr double kLeft = 70, kRight = 230, kTop = 34, kBottom = 50;
+  constexpr double kWidth = 1000, kHeight = 330;
+  constexpr double kLeft = 70, kRight = 330, kTop = 34, kBottom = 50;
   const double plot_w = kWidth - kLeft - kRight, plot_h = kHeight - kTop - kBottom;
 
   double x0 = std::numeric_limits<double>::infinity(), x1 = -x0;

@@ -154,8 +154,8 @@ std::string BuildHtml(const std::string& gt_dir, const RunEvaluation& run,
   std::ostringstream os;
   os << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
         "<title>arreg evaluation</title>\n<style>\n"
-        "body{font-family:sans-serif;margin:24px;color:#222;max-width:1150px}\n"
-        "table{border-collapse:collapse;margin:8px 0 16px}\n"
+        "body{font-family:sans-serif;margin:24px;color:#222;max-width:1180px}\n"
+        "table{border-collapse:collapse;margin:8px 0 16px;font-size:13px}\n"
         "th,td{border:1px solid #bbb;padding:4px 8px;text-align:right}\n"
         "th{background:#f0f0f0}\nth[scope=row]{text-align:left}\n"
         "figure{display:inline-block;margin:8px;vertical-align:top}\n"
