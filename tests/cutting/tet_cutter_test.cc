@@ -111,7 +111,14 @@ INSTANTIATE_TEST_SUITE_P(Methods, RandomPlanes,
                          ::testing::Values(PlaneCase{RemeshMethod::kFlips, 0.0, 1},
                                            PlaneCase{RemeshMethod::kFlips, 0.2, 2},
                                            PlaneCase{RemeshMethod::kBielser, 0.0, 3},
-                                           PlaneCase{RemeshMethod::kBielser, 0.2, 4}));
+                                           PlaneCase{RemeshMethod::kBielser, 0.2, 4}),
+                         [](const ::testing::TestParamInfo<PlaneCase>& info) {
+                           return std::string(info.param.method == RemeshMethod::kFlips
+                                                  ? "Flips"
+                                                  : "Bielser") +
+                                  "Eps" +
+                                  std::to_string(static_cast<int>(info.param.eps * 10 + 0.5));
+                         });
 
 // Curved surfaces (cylinders and spheres of random radius) through the box.
 TEST(TetCutter, RandomCurvedSurfacesKeepInvariants) {
