@@ -20,6 +20,7 @@ const Bench kBenches[] = {
     {"tracking", RunBenchTracking, "video decode, SURF detection and LK tracking speed"},
     {"cutting", RunBenchCutting, "beam cut: ours vs Bielser (growth, conditioning), event time"},
     {"detection", RunBenchDetection, "cut detection per frame (700 features, ~9,000 pairs)"},
+    {"mechanics", RunBenchMechanics, "implicit corotational step driven by springs (ms/step, phases)"},
     {nullptr, nullptr, nullptr},  // end marker; keeps the table valid while it grows
 };
 

@@ -14,5 +14,6 @@ int RunSynth(int argc, char** argv);
 int RunBenchTracking(int argc, char** argv);
 int RunBenchCutting(int argc, char** argv);
 int RunBenchDetection(int argc, char** argv);
+int RunBenchMechanics(int argc, char** argv);
 
 }  // namespace arreg::cli

@@ -26,6 +26,14 @@ Preconditioner ParsePreconditioner(const std::string& name) {
   throw Error("", "preconditioner", "unknown '" + name + "' (expected none, jacobi or ichol)");
 }
 
+CholmodFactorization ParseCholmodFactorization(const std::string& name) {
+  if (name == "supernodal") return CholmodFactorization::kSupernodal;
+  if (name == "simplicial") return CholmodFactorization::kSimplicial;
+  if (name == "auto") return CholmodFactorization::kAuto;
+  throw Error("", "CHOLMOD factorization",
+              "unknown '" + name + "' (expected supernodal, simplicial or auto)");
+}
+
 const char* LinearSolverStatusName(LinearSolverStatus status) {
   switch (status) {
     case LinearSolverStatus::kConverged:

@@ -17,6 +17,8 @@ enum class CholmodFactorization { kSupernodal, kSimplicial, kAuto };
 LinearSolverType ParseLinearSolverType(const std::string& name);  // "cg", "cholmod"
 const char* LinearSolverTypeName(LinearSolverType type);
 Preconditioner ParsePreconditioner(const std::string& name);  // "none", "jacobi", "ichol"
+// "supernodal", "simplicial", "auto"
+CholmodFactorization ParseCholmodFactorization(const std::string& name);
 
 struct LinearSolverOptions {
   LinearSolverType type = LinearSolverType::kCholmod;  // default CHOLMOD

@@ -87,30 +87,46 @@ void PolarSvd(const Eigen::Matrix3d& F, Eigen::Matrix3d* rotation) {
   *rotation = U * V.transpose();
 }
 
-int PolarMueller(const Eigen::Matrix3d& F, Eigen::Matrix3d* rotation, int max_iterations,
-                 double tolerance) {
-  Eigen::Quaterniond q(*rotation);
-  q.normalize();
+// Polar rotation by Newton's method on the rotation: with G = R^T F, the
+// polar R makes G symmetric; linearising R <- R exp(hat(w)) gives
+// (tr(G) I - sym(G)) w = axial(G - G^T), which converges quadratically from
+// a warm start. Far from the answer (the matrix is not positive definite) the
+// step falls back to the gradient-like step of Mueller et al. 2016,
+// w = axial(G - G^T) / |tr G|, and steps are capped at 1 rad.
+int PolarNewton(const Eigen::Matrix3d& F, Eigen::Matrix3d* rotation, int max_iterations,
+                double tolerance) {
+  Eigen::Matrix3d R = *rotation;
   int iteration = 0;
   for (; iteration < max_iterations; ++iteration) {
-    const Eigen::Matrix3d R = q.toRotationMatrix();
-    const Eigen::Vector3d torque =
-        R.col(0).cross(F.col(0)) + R.col(1).cross(F.col(1)) + R.col(2).cross(F.col(2));
-    const double alignment =
-        std::abs(R.col(0).dot(F.col(0)) + R.col(1).dot(F.col(1)) + R.col(2).dot(F.col(2)));
-    const Eigen::Vector3d omega = torque / (alignment + 1e-12);
-    const double angle = omega.norm();
+    const Eigen::Matrix3d G = R.transpose() * F;
+    const Eigen::Vector3d t(G(2, 1) - G(1, 2), G(0, 2) - G(2, 0), G(1, 0) - G(0, 1));
+    const double tr = G.trace();
+    Eigen::Matrix3d M = -0.5 * (G + G.transpose());
+    M.diagonal().array() += tr;
+    Eigen::Vector3d w;
+    const double det = M.determinant();
+    if (tr > 0.0 && det > 1e-6 * tr * tr * tr && M(0, 0) > 0.0 &&
+        M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0) > 0.0) {
+      w = M.inverse() * t;
+    } else {
+      w = t / (std::abs(tr) + 1e-12);
+    }
+    double angle = w.norm();
     if (!(angle > tolerance)) break;  // also stops on NaN input
-    q = Eigen::Quaterniond(Eigen::AngleAxisd(angle, omega / angle)) * q;
-    q.normalize();
+    if (angle > 1.0) {
+      w /= angle;
+      angle = 1.0;
+    }
+    R = R * Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
   }
-  if (iteration == max_iterations) {
+  if (iteration == max_iterations || !R.allFinite()) {
     // Not converged (a start far from the answer, or a near-singular F): the
-    // SVD answer is exact and costs about ten iterations.
+    // SVD answer is exact.
     PolarSvd(F, rotation);
     return iteration;
   }
-  *rotation = q.toRotationMatrix();
+  // One Newton-Schulz step keeps R orthonormal over many warm-started calls.
+  *rotation = 1.5 * R - 0.5 * R * R.transpose() * R;
   return iteration;
 }
 
@@ -140,7 +156,7 @@ int ExtractRotation(const Eigen::Matrix3d& F, RotationMethod method, Eigen::Matr
                     int max_iterations, double tolerance) {
   switch (method) {
     case RotationMethod::kPolar:
-      return PolarMueller(F, rotation, max_iterations, tolerance);
+      return PolarNewton(F, rotation, max_iterations, tolerance);
     case RotationMethod::kPolarSvd:
       PolarSvd(F, rotation);
       return 1;

@@ -24,9 +24,10 @@ struct Material {
 
 // How the element rotation R is extracted from the deformation gradient F.
 enum class RotationMethod {
-  // Rotation of the polar decomposition F = R S (S symmetric), computed with the
-  // quaternion iteration of Mueller et al. 2016 warm-started from the previous
-  // rotation; always a proper rotation, also for inverted elements.
+  // Rotation of the polar decomposition F = R S (S symmetric) by a Newton
+  // iteration on the rotation warm-started from the previous one (quadratic
+  // convergence; Mueller et al. 2016's step when far away; SVD if it fails);
+  // always a proper rotation, also for inverted elements.
   kPolar,
   // Polar rotation from a 3x3 SVD (F = U S V^T, R = U diag(1,1,det(UV^T)) V^T);
   // slower reference implementation.
