@@ -4,12 +4,11 @@
 #include <cmath>
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
-#include <ostream>
 
 #include "ar/eval/dice.h"
 #include "ar/render/rasterizer.h"
 #include "core/error.h"
-#include "core/file_util.h"
+#include "core/mesh_io.h"
 
 namespace arreg::eval {
 
@@ -45,19 +44,11 @@ SurfaceMesh ColorByDistance(const SurfaceMesh& mesh, const Eigen::VectorXd& dist
 void WriteColoredObj(const std::string& path, const SurfaceMesh& mesh) {
   ARREG_CHECK_INPUT(mesh.colors.rows() == mesh.vertices.rows(), path, "colors",
                     "need one colour per vertex");
-  WriteFileAtomic(path, [&](std::ostream& os) {
-    char line[160];
-    os << "# arreg eval: per-vertex distance colour map (v x y z r g b)\n";
-    for (int v = 0; v < mesh.num_vertices(); ++v) {
-      std::snprintf(line, sizeof(line), "v %.9g %.9g %.9g %.4f %.4f %.4f\n", mesh.vertices(v, 0),
-                    mesh.vertices(v, 1), mesh.vertices(v, 2), mesh.colors(v, 0), mesh.colors(v, 1),
-                    mesh.colors(v, 2));
-      os << line;
-    }
-    for (int f = 0; f < mesh.num_faces(); ++f)
-      os << "f " << mesh.faces(f, 0) + 1 << ' ' << mesh.faces(f, 1) + 1 << ' '
-         << mesh.faces(f, 2) + 1 << '\n';
-  });
+  ARREG_CHECK_INPUT(MeshFileExtension(path) == ".obj", path, "", "colour maps are written as .obj");
+  // core's OBJ writer emits "v x y z r g b" when every vertex has a colour.
+  MeshWriteOptions options;
+  options.precision = 7;  // 1e-4 mm at 100 mm and colours without float noise
+  WriteSurfaceMesh(path, mesh, options);
 }
 
 void ColorMapImageOptions::Check() const {

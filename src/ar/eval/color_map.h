@@ -21,7 +21,8 @@ SurfaceMesh ColorByDistance(const SurfaceMesh& mesh, const Eigen::VectorXd& dist
                             double max_distance);
 
 // Writes an OBJ with per-vertex colours ("v x y z r g b", the extension read by
-// MeshLab, Blender and CloudCompare) and the faces. Atomic.
+// MeshLab, Blender and CloudCompare) and the faces, through core's mesh writer
+// (atomic). Throws arreg::Error when `path` is not .obj or colours are missing.
 void WriteColoredObj(const std::string& path, const SurfaceMesh& colored_mesh);
 
 struct ColorMapImageOptions {
