@@ -9,6 +9,7 @@
 #include <limits>
 #include <random>
 #include <set>
+#include <string>
 
 #include "core/error.h"
 #include "cutting/cut_extrusion.h"
@@ -60,9 +61,17 @@ struct SeamScenario {
   double max_opening_mm = 10.0;
   double opening_slope = 0.5;  // opening per mm behind the tip
   double stiffness_mm = 8.0;
-  double noise_mm = 0.0;
+  // Tracking noise (std. dev., x and y) on the targets: 1 px at 200 mm with f = 800 px. Real
+  // tracks always carry some; it is what sets mean(mu) away from the cut.
+  double noise_mm = 0.25;
   unsigned seed = 3;
 
+  // Width [mm] of the gap at arc length `along` when the tip is at `tip`. Behind the start
+  // (beyond the border, where the grid's far corners lie) the halves move as at the start.
+  double Opening(double along, double tip) const {
+    const double behind_tip = tip - std::max(along, 0.0);
+    return behind_tip > 0.0 ? std::min(max_opening_mm, opening_slope * behind_tip) : 0.0;
+  }
   Eigen::Vector2d Along() const { return direction.normalized(); }
   Eigen::Vector2d Normal() const { return Eigen::Vector2d(-Along().y(), Along().x()); }
   // (arc length along the seam, signed distance from it) of a point.
@@ -95,8 +104,7 @@ SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOp
     RowMatX3d target = g.p0, model = g.p0;
     for (int r = 0; r < n; ++r) {
       const Eigen::Vector2d c = s.Coordinates(g.p0.row(r).transpose());
-      const double open =
-          c.x() < tip ? std::min(s.max_opening_mm, s.opening_slope * (tip - c.x())) : 0.0;
+      const double open = s.Opening(c.x(), tip);
       const double side = c.y() > 0 ? 1.0 : -1.0;
       target.row(r).head<2>() += side * 0.5 * open * normal.transpose();
       const double follow =
@@ -228,52 +236,49 @@ TEST(CutDetector, MeasureMatchesDefinition) {
 TEST(CutDetector, SeamPulledApartGivesCutPointsAlongTheSeam) {
   const FeatureGrid g = MakeGrid();
   const CutDetectorOptions options;  // thesis kidney 1 values
-  const SeamScenario scenario;
-  const SeamRun run = RunSeam(g, scenario, options);
-  ASSERT_GE(run.points.size(), 8u) << "the 125 mm cut should give a polyline";
-  for (size_t i = 0; i < run.points.size(); ++i) {
-    const Eigen::Vector2d c = scenario.Coordinates(run.points[i].initial_position_mm);
-    EXPECT_LT(std::abs(c.y()), options.cut_point_radius_mm) << "cut point " << i;
-    EXPECT_NEAR(run.points[i].initial_position_mm.z(), 0.0, 1e-9);
-    // Never ahead of the real cut's tip (the detection may lag, not lead).
-    EXPECT_LT(c.x(), run.tip_at_point[i] + options.cut_point_radius_mm) << "cut point " << i;
-    EXPECT_GT(c.x(), -options.cut_point_radius_mm);
-    // In the current frame too (the model is separated there by up to 10 mm).
-    EXPECT_LT(std::abs(scenario.Coordinates(run.points[i].position_mm).y()),
-              options.cut_point_radius_mm);
+  for (unsigned seed : {1u, 2u, 3u, 4u, 5u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    SeamScenario scenario;
+    scenario.seed = seed;
+    const SeamRun run = RunSeam(g, scenario, options);
+    ASSERT_GE(run.points.size(), 8u) << "the 125 mm cut should give a polyline";
+    for (size_t i = 0; i < run.points.size(); ++i) {
+      const Eigen::Vector2d c = scenario.Coordinates(run.points[i].initial_position_mm);
+      EXPECT_LT(std::abs(c.y()), options.cut_point_radius_mm) << "cut point " << i;
+      EXPECT_NEAR(run.points[i].initial_position_mm.z(), 0.0, 1e-9);
+      // Never ahead of the real cut's tip (the detection may lag, not lead).
+      EXPECT_LT(c.x(), run.tip_at_point[i] + options.cut_point_radius_mm) << "cut point " << i;
+      EXPECT_GT(c.x(), -options.cut_point_radius_mm);
+      // In the current frame too (the halves are up to 10 mm apart there).
+      EXPECT_LT(std::abs(scenario.Coordinates(run.points[i].position_mm).y()),
+                options.cut_point_radius_mm);
+    }
+    // The polyline grows at the tip: its points are ordered along the seam...
+    for (size_t i = 1; i < run.points.size(); ++i)
+      EXPECT_GT(scenario.Coordinates(run.points[i].initial_position_mm).x(),
+                scenario.Coordinates(run.points[i - 1].initial_position_mm).x());
+    // ...and follows the cut: the gap must stand out of the noise first, so the extended
+    // polyline lags the tip (by ~10 mm, 5 frames, here) but by less than 2 r_pc.
+    EXPECT_GT(scenario.Coordinates(run.extended_initial.back()).x(),
+              scenario.tip_end_mm - 2 * options.cut_point_radius_mm);
+    // ...and, starting at the border, is extended across it (boundary handling).
+    EXPECT_LT(run.extended_initial.front().x(), 0.0);
   }
-  // The polyline grows at the tip: its points are ordered along the seam...
-  for (size_t i = 1; i < run.points.size(); ++i)
-    EXPECT_GT(scenario.Coordinates(run.points[i].initial_position_mm).x(),
-              scenario.Coordinates(run.points[i - 1].initial_position_mm).x());
-  // ...follows the cut to within r_pc of the final tip...
-  EXPECT_GT(scenario.Coordinates(run.extended_initial.back()).x(),
-            scenario.tip_end_mm - options.cut_point_radius_mm);
-  // ...and, starting at the border, is extended across it (boundary handling).
-  EXPECT_LT(run.extended_initial.front().x(), 0.0);
-}
-
-TEST(CutDetector, SeamWithOnePixelNoiseStillOnTheSeam) {
-  const FeatureGrid g = MakeGrid();
-  SeamScenario scenario;
-  scenario.noise_mm = 0.25;  // 1 px at 200 mm with f = 800 px
-  const CutDetectorOptions options;
-  const SeamRun run = RunSeam(g, scenario, options);
-  ASSERT_GE(run.points.size(), 5u);
-  for (const CutPoint& p : run.points)
-    EXPECT_LT(std::abs(SeamScenario{}.Coordinates(p.initial_position_mm).y()),
-              options.cut_point_radius_mm);
 }
 
 TEST(CutDetector, ImageOnlyMeasureAlsoFindsTheSeam) {
   const FeatureGrid g = MakeGrid();
   CutDetectorOptions options;
   options.measure = CutMeasure::kImageOnly;
-  const SeamRun run = RunSeam(g, SeamScenario{}, options);
-  ASSERT_GE(run.points.size(), 5u);
-  for (const CutPoint& p : run.points)
-    EXPECT_LT(std::abs(SeamScenario{}.Coordinates(p.initial_position_mm).y()),
-              options.cut_point_radius_mm);
+  for (unsigned seed : {1u, 2u, 3u}) {
+    SeamScenario scenario;
+    scenario.seed = seed;
+    const SeamRun run = RunSeam(g, scenario, options);
+    ASSERT_GE(run.points.size(), 8u);
+    for (const CutPoint& p : run.points)
+      EXPECT_LT(std::abs(scenario.Coordinates(p.initial_position_mm).y()),
+                options.cut_point_radius_mm);
+  }
 }
 
 TEST(CutDetector, PairsCrossingTheCutPointSphereAreRemoved) {
