@@ -9,6 +9,8 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
+#include "core/file_util.h"
+#include "test_util.h"
 
 namespace arreg {
 namespace {
@@ -179,6 +181,27 @@ TEST(SpatioTemporalOutliers, FlagsAJumpAmongSlowNeighboursButNotAPan) {
   options.neighbours = 8;
   flags = SpatioTemporalOutliers(positions, displacements, options);
   EXPECT_EQ(std::count(flags.begin(), flags.end(), true), 0);
+}
+
+TEST(TrackStore, CsvHoldsEveryObservation) {
+  const cv::Mat a = Texture(200, 200, 15);
+  cv::Mat b;
+  cv::warpAffine(a, b, cv::Matx23d(1, 0, 0.5, 0, 1, -0.25), a.size(), cv::INTER_CUBIC,
+                 cv::BORDER_REFLECT);
+  FeatureTracker tracker;
+  tracker.Initialize(a);
+  tracker.Track(b);
+  tracker.Track(a);
+  const std::string path = testing::ScratchDir("track_csv") + "/tracks.csv";
+  tracker.store().WriteCsv(path);
+  const std::string text = ReadFileToString(path);
+  size_t observations = 0;
+  for (int id = 0; id < tracker.store().num_features(); ++id)
+    observations += tracker.store().history(id).size();
+  EXPECT_EQ(static_cast<size_t>(std::count(text.begin(), text.end(), '\n')), observations + 1);
+  EXPECT_EQ(text.rfind("id,frame,x_px,y_px,status\n0,0,", 0), 0u);
+  EXPECT_EQ(tracker.store().descriptors().rows, tracker.store().num_features());
+  EXPECT_NEAR(cv::norm(tracker.store().descriptor(0)), 1.0, 1e-5);
 }
 
 TEST(FeatureTracker, RejectsBadInput) {
