@@ -208,7 +208,7 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
       const CutPoint& end = front ? polyline_[0] : polyline_.back();
       const CutPoint& prev = front ? polyline_[1] : polyline_[polyline_.size() - 2];
       const Eigen::Vector3d dir = end.position_mm - prev.position_mm;
-      if (dir.norm() > 0.0)
+      if (options_.look_ahead && dir.norm() > 0.0)
         result->look_ahead_mm = end.position_mm + options_.cut_point_radius_mm * dir.normalized();
       if (polyline_.size() == 2) {
         front_at_border_ = ExtremityAtBorder(true);

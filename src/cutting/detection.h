@@ -91,7 +91,8 @@ struct DetectionResult {
   int pairs_removed_by_death = 0;            // pairs with a feature that died this frame
   bool segment_added = false;                // the polyline has >= 2 points and grew this frame
   std::vector<Eigen::Vector3d> polyline_mm;  // cut points in order (p^t at insertion)
-  std::optional<Eigen::Vector3d> look_ahead_mm;       // beyond the extremity grown this frame
+  std::optional<Eigen::Vector3d>
+      look_ahead_mm;  // r_pc beyond the extremity grown this frame (if look_ahead)
   std::vector<Eigen::Vector3d> extended_polyline_mm;  // polyline with look-ahead/border extensions
 };
 

@@ -86,6 +86,7 @@ struct SeamRun {
   std::vector<double> tip_at_point;
   std::vector<Eigen::Vector3d> extended_initial;
   int frames = 0;
+  int look_aheads = 0;  // frames whose result had a look-ahead point (checked in RunSeam)
 };
 
 SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOptions& options) {
@@ -116,6 +117,19 @@ SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOp
       }
     }
     detector.Update(MakeFrame(g, target, model), &result);
+    if (result.look_ahead_mm) {
+      // The look-ahead point lies on the r_pc sphere around the grown extremity, on the line
+      // through the extremity's last segment.
+      const std::vector<Eigen::Vector3d>& pl = result.polyline_mm;
+      const bool at_back =
+          (*result.look_ahead_mm - pl.back()).norm() < (*result.look_ahead_mm - pl.front()).norm();
+      const Eigen::Vector3d end = at_back ? pl.back() : pl.front();
+      const Eigen::Vector3d prev = at_back ? pl[pl.size() - 2] : pl[1];
+      EXPECT_NEAR((*result.look_ahead_mm - end).norm(), options.cut_point_radius_mm, 1e-9);
+      EXPECT_NEAR((*result.look_ahead_mm - end).normalized().dot((end - prev).normalized()), 1.0,
+                  1e-12);
+      ++run.look_aheads;
+    }
     for (const CutPoint& p : result.new_cut_points) {
       run.points.push_back(p);
       run.tip_at_point.push_back(tip);
@@ -242,6 +256,7 @@ TEST(CutDetector, SeamPulledApartGivesCutPointsAlongTheSeam) {
     scenario.seed = seed;
     const SeamRun run = RunSeam(g, scenario, options);
     ASSERT_GE(run.points.size(), 8u) << "the 125 mm cut should give a polyline";
+    EXPECT_EQ(run.look_aheads, static_cast<int>(run.points.size()) - 1);
     for (size_t i = 0; i < run.points.size(); ++i) {
       const Eigen::Vector2d c = scenario.Coordinates(run.points[i].initial_position_mm);
       EXPECT_LT(std::abs(c.y()), options.cut_point_radius_mm) << "cut point " << i;
