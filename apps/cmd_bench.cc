@@ -17,10 +17,11 @@ struct Bench {
 
 // Keep in step with README.md ("Benchmarks").
 const Bench kBenches[] = {
-    {"tracking", RunBenchTracking, "video decode, SURF detection and LK tracking speed"},
     {"cutting", RunBenchCutting, "beam cut: ours vs Bielser (growth, conditioning), event time"},
     {"detection", RunBenchDetection, "cut detection per frame (700 features, ~9,000 pairs)"},
     {"mechanics", RunBenchMechanics, "implicit corotational step driven by springs (ms/step, phases)"},
+    {"pipeline", RunBenchPipeline, "arreg run per stage (decode .. encode), fps with/without video"},
+    {"tracking", RunBenchTracking, "video decode, SURF detection and LK tracking speed"},
     {nullptr, nullptr, nullptr},  // end marker; keeps the table valid while it grows
 };
 

@@ -8,12 +8,14 @@ namespace arreg::cli {
 int RunBench(int argc, char** argv);
 int RunEval(int argc, char** argv);
 int RunInfo(int argc, char** argv);
+int RunRun(int argc, char** argv);
 int RunSynth(int argc, char** argv);
 
 // Benchmarks dispatched by RunBench (apps/bench_*.cc).
-int RunBenchTracking(int argc, char** argv);
 int RunBenchCutting(int argc, char** argv);
 int RunBenchDetection(int argc, char** argv);
 int RunBenchMechanics(int argc, char** argv);
+int RunBenchPipeline(int argc, char** argv);
+int RunBenchTracking(int argc, char** argv);
 
 }  // namespace arreg::cli

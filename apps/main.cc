@@ -21,6 +21,7 @@ constexpr Command kCommands[] = {
     {"bench", arreg::cli::RunBench, "speed benchmarks that print figures and write JSON"},
     {"eval", arreg::cli::RunEval, "accuracy against ground truth: Dice, Hausdorff, feature error"},
     {"info", arreg::cli::RunInfo, "describe a mesh file (counts, volume, quality)"},
+    {"run", arreg::cli::RunRun, "register a model to a video (overlay, records)"},
     {"synth", arreg::cli::RunSynth, "synthetic benchmark scenes with ground truth (video, masks, cut)"},
 };
 

@@ -1,0 +1,157 @@
+// `arreg bench pipeline`: per-stage milliseconds of `arreg run` on a scene (decode, track,
+// lift, mechanics, cutting, render, encode) and frames per second with and without video.
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "ar/pipeline/registration_pipeline.h"
+#include "commands.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/scene.h"
+#include "option_parser.h"
+
+namespace arreg::cli {
+namespace {
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// Sums the stage times of frames 1.. (frame 0 holds the one-off detection and attachment).
+class TimeCollector : public pipeline::FrameObserver {
+ public:
+  void OnFrame(const pipeline::FrameState& f) override {
+    if (f.frame == 0) {
+      frame0_ms = f.ms.Total();
+      return;
+    }
+    sum += f.ms;
+    ++frames;
+    features += f.stats.features_alive;
+  }
+  pipeline::StageTimes sum;
+  int frames = 0;
+  double frame0_ms = 0;
+  double features = 0;
+};
+
+struct Measurement {
+  std::vector<double> stage[7];  // ms per frame per run, in kStages order
+  std::vector<double> total, frame0;
+  double mean_features = 0;
+  int frames = 0;
+};
+const char* kStages[7] = {"decode", "track", "lift", "mechanics", "cutting", "render", "encode"};
+
+Measurement Measure(const Scene& scene, const pipeline::PipelineOptions& options, bool video,
+                    int repeats) {
+  Measurement m;
+  const std::string video_path = (std::filesystem::temp_directory_path() /
+                                  ("arreg-bench-pipeline-" + std::to_string(getpid()) + ".mp4"))
+                                     .string();
+  for (int r = 0; r < repeats; ++r) {
+    pipeline::RegistrationPipeline pipe(scene, options);
+    TimeCollector c;
+    pipe.AddObserver(&c);
+    pipeline::RunOptions run;
+    if (video) run.overlay_video_path = video_path;
+    pipe.Run(run);
+    ARREG_CHECK_INPUT(c.frames > 0, scene.video_path, "", "needs at least two frames");
+    const pipeline::StageTimes& s = c.sum;
+    const double v[7] = {s.decode, s.track, s.lift, s.mechanics, s.cutting, s.render, s.encode};
+    for (int k = 0; k < 7; ++k) m.stage[k].push_back(v[k] / c.frames);
+    m.total.push_back(s.Total() / c.frames);
+    m.frame0.push_back(c.frame0_ms);
+    m.mean_features = c.features / c.frames;
+    m.frames = c.frames + 1;
+  }
+  std::error_code ec;
+  std::filesystem::remove(video_path, ec);
+  return m;
+}
+
+nlohmann::json Report(const Measurement& m) {
+  nlohmann::json j;
+  for (int k = 0; k < 7; ++k) j["ms_per_frame"][kStages[k]] = Median(m.stage[k]);
+  j["ms_per_frame"]["total"] = Median(m.total);
+  j["fps"] = 1000.0 / Median(m.total);
+  j["frame0_ms"] = Median(m.frame0);
+  j["mean_alive_features"] = m.mean_features;
+  return j;
+}
+
+void Print(const char* title, const Measurement& m) {
+  std::printf("%s\n", title);
+  for (int k = 0; k < 7; ++k) std::printf("  %-10s %8.3f ms\n", kStages[k], Median(m.stage[k]));
+  std::printf("  %-10s %8.3f ms  -> %.1f frames/s (frame 0: %.1f ms)\n", "total", Median(m.total),
+              1000.0 / Median(m.total), Median(m.frame0));
+}
+
+}  // namespace
+
+int RunBenchPipeline(int argc, char** argv) {
+  std::string scene_path, json_path;
+  int repeats = 3, frames = -1;
+  bool no_topology = false;
+  OptionParser parser(
+      "arreg bench pipeline --scene S.json [--json OUT] [options]",
+      "Runs the registration of a scene without writing records and prints the median (over "
+      "--repeats runs) milliseconds per frame of each stage and the frames per second, with and "
+      "without encoding the overlay video. Single-threaded (decode and encode threads 1). Frame "
+      "0 (detection and attachment) is reported separately.");
+  parser.AddString("scene", &scene_path, "S.json", "scene file", true);
+  parser.AddString("json", &json_path, "OUT", "also write the figures to this JSON file");
+  parser.AddInt("repeats", &repeats, "N", "runs per measurement (median taken)");
+  parser.AddInt("frames", &frames, "N", "frames per run (-1: the whole video)");
+  parser.AddFlag("no-topology", &no_topology, "without cut detection and handling");
+  if (!parser.Parse(argc, argv)) return 0;
+  ARREG_CHECK_INPUT(repeats >= 1, "", "--repeats", "must be >= 1, got ", repeats);
+
+  const Scene scene = ReadScene(scene_path);
+  pipeline::PipelineOptions options = pipeline::ReadPipelineOptions(scene);
+  options.max_frames = frames;
+  options.output.encode_threads = 1;
+  if (no_topology) options.cutting.enabled = false;
+  options.Check();
+
+  const Measurement with_video = Measure(scene, options, true, repeats);
+  const Measurement without_video = Measure(scene, options, false, repeats);
+  pipeline::PipelineOptions bare = options;
+  bare.render.enabled = false;
+  const Measurement without_render = Measure(scene, bare, false, repeats);
+
+  std::printf(
+      "scene %s: %dx%d, %d frames, %.0f alive features on average, topology %s, "
+      "%d repeats\n",
+      scene_path.c_str(), scene.camera.width, scene.camera.height, with_video.frames,
+      with_video.mean_features, options.cutting.enabled ? "on" : "off", repeats);
+  Print("with overlay video (end to end):", with_video);
+  Print("without video encoding:", without_video);
+  Print("without rendering and encoding:", without_render);
+
+  if (!json_path.empty()) {
+    nlohmann::json out;
+    out["scene"] = scene_path;
+    out["width"] = scene.camera.width;
+    out["height"] = scene.camera.height;
+    out["frames"] = with_video.frames;
+    out["repeats"] = repeats;
+    out["topology"] = options.cutting.enabled;
+    out["with_video"] = Report(with_video);
+    out["without_video"] = Report(without_video);
+    out["without_render"] = Report(without_render);
+    WriteFileAtomic(json_path, [&out](std::ostream& os) { os << out.dump(2) << '\n'; });
+  }
+  return 0;
+}
+
+}  // namespace arreg::cli

@@ -1,0 +1,166 @@
+// `arreg run`: registers the scene's model to its video (overlay video and records).
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <string>
+
+#include "ar/pipeline/record_writer.h"
+#include "ar/pipeline/registration_pipeline.h"
+#include "commands.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/scene.h"
+#include "option_parser.h"
+
+namespace arreg::cli {
+namespace {
+
+std::atomic<bool> g_stop{false};
+extern "C" void OnSigint(int) { g_stop.store(true); }
+
+// Progress bar with frames per second on a terminal (stderr); silent in pipes.
+class ProgressBar : public pipeline::FrameObserver {
+ public:
+  void OnStart(const pipeline::RunStart& start) override {
+    total_ = start.expected_frames;
+    std::fprintf(stderr, "arreg run: %d frames, %d features attached of %d detected\n", total_,
+                 start.features_attached, start.features_detected);
+    t0_ = std::chrono::steady_clock::now();
+  }
+  void OnFrame(const pipeline::FrameState& f) override {
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
+    const int done = f.frame + 1;
+    const int width = 30;
+    const int filled = total_ > 0 ? width * done / total_ : width;
+    std::fprintf(stderr, "\r[%s%s] %d/%d  %.1f fps  springs %d  mean %.2f mm ",
+                 std::string(filled, '#').c_str(), std::string(width - filled, ' ').c_str(), done,
+                 total_, s > 0 ? done / s : 0.0, f.stats.features_alive,
+                 f.stats.spring_length_mean_mm);
+    std::fflush(stderr);
+  }
+  void OnFinish(const pipeline::RunSummary& s) override {
+    std::fprintf(stderr, "\n%s", s.interrupted ? "arreg run: interrupted\n" : "");
+  }
+
+ private:
+  int total_ = 0;
+  std::chrono::steady_clock::time_point t0_;
+};
+
+}  // namespace
+
+int RunRun(int argc, char** argv) {
+  std::string scene_path, out_dir, lifting, lift_update;
+  bool no_topology = false, no_video = false, png = false, quiet = false, wireframe = false;
+  bool show_features = false, show_targets = false, show_springs = false, no_render = false;
+  int frames = -1, save_every = 0, supersampling = 0, substeps = 0, crf = -1;
+  double stiffness = 0, opacity = -1;
+  OptionParser parser(
+      "arreg run --scene S.json --out DIR [options]",
+      "Registers the scene's organ model to its video: tracks features, lifts them to 3D, "
+      "pulls the FEM model with springs (one implicit step per frame), follows cuts, and writes "
+      "the overlay video and the records of docs/run-format.md.");
+  parser.AddString("scene", &scene_path, "S.json", "scene file (docs/scene-format.md)", true);
+  parser.AddString("out", &out_dir, "DIR", "output folder (created)", true);
+  parser.AddFlag("no-topology", &no_topology, "register without cut handling");
+  parser.AddInt("frames", &frames, "N", "process at most N frames (-1: all)");
+  parser.AddInt(
+      "save-every", &save_every, "K",
+      "save meshes every K-th frame (default: the ground truth's, else output.save_every)");
+  parser.AddFlag("no-video", &no_video, "do not write overlay.mp4");
+  parser.AddFlag("no-render", &no_render, "skip the overlay rendering (and the video)");
+  parser.AddFlag("png", &png, "also write frames/NNNNNN.png of the overlay");
+  parser.AddFlag("wireframe", &wireframe, "draw the model's surface edges");
+  parser.AddFlag("show-features", &show_features, "draw the tracked features");
+  parser.AddFlag("show-targets", &show_targets, "draw the lifted targets");
+  parser.AddFlag("show-springs", &show_springs, "draw the springs (anchor to target)");
+  parser.AddDouble("opacity", &opacity, "A", "organ opacity in [0, 1] (default 0.35)");
+  parser.AddInt("supersampling", &supersampling, "S", "anti-aliasing samples per pixel and axis");
+  parser.AddInt("crf", &crf, "Q", "x264 quality of overlay.mp4 (default 18)");
+  parser.AddDouble("stiffness", &stiffness, "N_PER_M", "feature spring stiffness (default 500)");
+  parser.AddInt("substeps", &substeps, "N", "implicit Euler sub-steps per frame (default 1)");
+  parser.AddString("lifting", &lifting, "surface|plane", "lifting target (default surface)");
+  parser.AddString("lift-update", &lift_update, "intercept|raycast",
+                   "surface target update (default intercept, thesis eq. 7.1)");
+  parser.AddFlag("quiet", &quiet, "no progress bar");
+  parser.SetEpilog(
+      "Options given here override the scene's module sections (docs/pipeline.md).\n"
+      "Writes in DIR: overlay.mp4, frames.jsonl, run.json, mesh/NNNNNN.vtk, surface/NNNNNN.obj,\n"
+      "internal/NNNNNN.obj (docs/run-format.md). Ctrl-C stops after the current frame and\n"
+      "leaves complete outputs.");
+  if (!parser.Parse(argc, argv)) return 0;
+
+  const Scene scene = ReadScene(scene_path);
+  pipeline::PipelineOptions options = pipeline::ReadPipelineOptions(scene);
+  if (no_topology) options.cutting.enabled = false;
+  if (frames != -1) options.max_frames = frames;
+  if (png) options.output.png_frames = true;
+  if (no_video || no_render) options.output.video = false;
+  if (no_render) options.render.enabled = false;
+  if (wireframe) options.render.wireframe = true;
+  if (show_features) options.render.show_features = true;
+  if (show_targets) options.render.show_targets = true;
+  if (show_springs) options.render.show_springs = true;
+  if (parser.Given("opacity")) options.render.organ_opacity = opacity;
+  if (parser.Given("supersampling")) options.render.supersampling = supersampling;
+  if (parser.Given("crf")) options.output.crf = crf;
+  if (parser.Given("stiffness")) options.mechanics.spring_stiffness_n_per_m = stiffness;
+  if (parser.Given("substeps")) options.mechanics.substeps = substeps;
+  if (parser.Given("lifting")) {
+    ARREG_CHECK_INPUT(lifting == "surface" || lifting == "plane", "", "--lifting",
+                      "expected surface or plane, got '", lifting, "'");
+    options.lifting.target =
+        lifting == "plane" ? lift::LiftTarget::kPlane : lift::LiftTarget::kSurface;
+  }
+  if (parser.Given("lift-update")) {
+    ARREG_CHECK_INPUT(lift_update == "intercept" || lift_update == "raycast", "", "--lift-update",
+                      "expected intercept or raycast, got '", lift_update, "'");
+    options.lifting.surface_update = lift_update == "raycast"
+                                         ? lift::SurfaceUpdate::kRayCastWithFallback
+                                         : lift::SurfaceUpdate::kInterceptTheorem;
+  }
+  ARREG_CHECK_INPUT(save_every >= 0, "", "--save-every", "must be >= 1");
+  options.Check();
+
+  CreateDirectories(out_dir);
+  pipeline::RegistrationPipeline pipe(scene, options);
+  ProgressBar progress;
+  pipeline::RecordWriter records(out_dir, options.output.png_frames);
+  if (!quiet && isatty(STDERR_FILENO)) pipe.AddObserver(&progress);
+  pipe.AddObserver(&records);
+
+  pipeline::RunOptions run;
+  if (options.output.video && options.render.enabled)
+    run.overlay_video_path = out_dir + "/overlay.mp4";
+  run.stop = &g_stop;
+  run.save_every = save_every;
+  g_stop.store(false);
+  struct sigaction action = {}, previous = {};
+  action.sa_handler = OnSigint;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, &previous);
+  pipeline::RunSummary s;
+  try {
+    s = pipe.Run(run);
+  } catch (...) {
+    sigaction(SIGINT, &previous, nullptr);
+    throw;
+  }
+  sigaction(SIGINT, &previous, nullptr);
+
+  const double fps = s.total_ms.Total() > 0 ? 1000.0 * s.frames / s.total_ms.Total() : 0.0;
+  const double n = s.frames > 0 ? s.frames : 1;
+  std::printf(
+      "%d frames%s, %.1f fps (decode %.2f, track %.2f, lift %.2f, mechanics %.2f, "
+      "cutting %.2f, render %.2f, encode %.2f ms/frame); %d cut events, %d applied\n",
+      s.frames, s.interrupted ? " (interrupted)" : "", fps, s.total_ms.decode / n,
+      s.total_ms.track / n, s.total_ms.lift / n, s.total_ms.mechanics / n, s.total_ms.cutting / n,
+      s.total_ms.render / n, s.total_ms.encode / n, s.cut_events, s.cuts_applied);
+  std::printf("outputs in %s\n", out_dir.c_str());
+  return s.interrupted ? 130 : 0;
+}
+
+}  // namespace arreg::cli

@@ -1,0 +1,120 @@
+// Read-only view of one registration frame and the observer interface through which the
+// progress bar, the record writer and the debug recorder (issue 8) follow a run.
+#pragma once
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "ar/lift/lifting.h"
+#include "core/mesh.h"
+#include "core/scene.h"
+#include "cutting/detection.h"
+#include "mechanics/mechanical_state.h"
+#include "tracking/tracker.h"
+
+namespace arreg::pipeline {
+
+struct PipelineOptions;
+
+// Milliseconds spent per stage in one frame (or summed over a run).
+struct StageTimes {
+  double decode = 0, track = 0, lift = 0, mechanics = 0, cutting = 0, render = 0, encode = 0;
+  double record = 0;  // observers (records, debug); not part of `Total()` of the frame itself
+  double Total() const { return decode + track + lift + mechanics + cutting + render + encode; }
+  StageTimes& operator+=(const StageTimes& o);
+  nlohmann::json ToJson() const;  // {"decode": ms, ...}
+};
+
+// One feature attached at frame 0 (row r of every per-feature matrix below).
+struct FeatureView {
+  int id = 0;             // tracker id (TrackStore)
+  Eigen::Vector2d pixel;  // where the tracker has it now (last position when lost)
+  TrackStatus track_status = TrackStatus::kTracked;  // this frame (final once not kTracked)
+  lift::LiftStatus lift_status = lift::LiftStatus::kNotAttached;
+  bool alive = false;             // tracked and attached: its spring acts
+  int spring = -1;                // SpringEnergy id, -1 when never attached
+  bool spring_active = false;     // false once lost or removed near a cut
+  double spring_length_mm = 0.0;  // |anchor - target| (0 for inactive springs)
+};
+
+// A topology event of the cutting stage.
+struct CutEvent {
+  int frame = 0;
+  std::string status;   // "cut", "no-crossing", "rejected", "failed"
+  std::string message;  // why, for rejected/failed
+  int polyline_points = 0;
+  int new_tetrahedra = 0;   // #T after - #T before
+  int new_vertices = 0;     // inserted + duplicated
+  int springs_removed = 0;  // within the margin of S
+  int internal_triangles_removed = 0;
+  nlohmann::json ToJson() const;
+};
+
+// Per-frame figures written to frames.jsonl.
+struct FrameStats {
+  int features_alive = 0;  // springs acting this frame
+  int outliers = 0;        // features dropped by the spatio-temporal filter this frame
+  int lost = 0;            // features lost this frame (any reason)
+  double spring_length_mean_mm = 0, spring_length_max_mm = 0;  // over alive springs
+  int inverted_elements = 0;
+  std::string mechanics_status;  // StepStatusName of the integrator
+};
+
+// Everything known about one frame; valid only during FrameObserver::OnFrame.
+struct FrameState {
+  int frame = 0;
+  double time_s = 0;                 // frame / fps
+  bool is_last = false;              // last frame of the run (end of video, max_frames or Ctrl-C)
+  bool save_meshes = false;          // a record frame (ground-truth frames, every k-th, the last)
+  const cv::Mat* image = nullptr;    // decoded BGR frame
+  const cv::Mat* overlay = nullptr;  // rendered overlay (empty Mat when rendering is off)
+  const std::vector<FeatureView>* features = nullptr;
+  const RowMatX3d* targets_mm = nullptr;  // (#features x 3) p^1_F, world
+  const RowMatX3d* anchors_mm = nullptr;  // (#features x 3) p^t_F on the current model, world
+  // Cut detection this frame; nullptr without topology handling.
+  const cutting::DetectionResult* detection = nullptr;
+  const std::vector<CutEvent>* cut_events = nullptr;  // of this frame
+  const SurfaceMesh* cut_surface = nullptr;           // last S (world), nullptr before any
+  const mechanics::MechanicalState* state = nullptr;  // the model (world, mm)
+  const SurfaceMesh* surface = nullptr;  // boundary of the model, current positions (world)
+  // Internal structures at their current positions (world), one per scene structure.
+  const std::vector<SurfaceMesh>* internal = nullptr;
+  const std::vector<std::string>* internal_names = nullptr;
+  FrameStats stats;
+  StageTimes ms;
+};
+
+struct RunStart {
+  const Scene* scene = nullptr;
+  const PipelineOptions* options = nullptr;
+  int expected_frames = 0;  // frames the run will process unless stopped
+  double fps = 0;
+  int width = 0, height = 0;
+  int model_vertices = 0, model_tetrahedra = 0;
+  int features_detected = 0, features_attached = 0;
+};
+
+struct RunSummary {
+  int frames = 0;            // processed
+  bool interrupted = false;  // stopped by the stop flag (Ctrl-C)
+  bool topology = true;      // cut handling on
+  StageTimes total_ms;       // summed over frames
+  int cut_events = 0;
+  int cuts_applied = 0;
+  double seconds = 0;  // wall time of the run loop
+};
+
+// Hooks called by RegistrationPipeline::Run, in the order observers were added.
+// Exceptions thrown by an observer abort the run.
+class FrameObserver {
+ public:
+  virtual ~FrameObserver() = default;
+  virtual void OnStart(const RunStart& start) {}
+  virtual void OnFrame(const FrameState& frame) = 0;
+  virtual void OnFinish(const RunSummary& summary) {}
+};
+
+}  // namespace arreg::pipeline

@@ -1,0 +1,52 @@
+// The overlay render stage: the deformed organ (translucent, shaded) and the internal
+// structures seen through it, z-buffered and anti-aliased, composited over the video frame.
+#pragma once
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "ar/pipeline/pipeline_options.h"
+#include "ar/render/rasterizer.h"
+#include "core/camera.h"
+#include "core/mesh.h"
+
+namespace arreg::pipeline {
+
+// The rasterizer's distortion-free camera for a PinholeCamera. Lens distortion is not
+// applied: the overlay of a distorted camera is drawn as its pinhole part (see docs/pipeline.md).
+render::RasterCamera ToRasterCamera(const PinholeCamera& camera);
+
+struct OverlayStructure {
+  const RowMatX3d* vertices_mm = nullptr;            // (#V x 3) world
+  const RowMatX3i* faces = nullptr;                  // (#F x 3)
+  Eigen::Vector3d color = Eigen::Vector3d(1, 1, 0);  // linear RGB in [0, 1]
+  double opacity = 1.0;
+};
+
+// Optional annotation layers (pixels, world points).
+struct OverlayLayers {
+  const RowMatX2d* feature_pixels = nullptr;  // (#F x 2)
+  const RowMatX3d* targets_mm = nullptr;      // (#F x 3)
+  const RowMatX3d* anchors_mm = nullptr;      // (#F x 3)
+  const std::vector<char>* alive = nullptr;   // (#F) rows drawn
+};
+
+class OverlayRenderer {
+ public:
+  // Warns once when the camera has lens distortion (drawn as a pinhole camera).
+  OverlayRenderer(const PinholeCamera& camera, const RenderStageOptions& options);
+
+  // Draws over `bgr` (CV_8UC3, camera size) in place. Only the projected bounding box of the
+  // organ is rasterised (at options.supersampling), so the cost follows the organ's size.
+  void Render(const RowMatX3d& organ_vertices_mm, const RowMatX3i& organ_faces,
+              const std::vector<OverlayStructure>& internal, const OverlayLayers& layers,
+              cv::Mat* bgr) const;
+
+ private:
+  PinholeCamera camera_;
+  render::RasterCamera raster_;
+  RenderStageOptions options_;
+};
+
+}  // namespace arreg::pipeline

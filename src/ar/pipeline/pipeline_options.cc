@@ -1,0 +1,223 @@
+#include "ar/pipeline/pipeline_options.h"
+
+#include <cmath>
+
+#include "core/error.h"
+#include "core/json_reader.h"
+
+namespace arreg::pipeline {
+
+void MechanicsStageOptions::Check() const {
+  ARREG_CHECK_INPUT(std::isfinite(spring_stiffness_n_per_m) && spring_stiffness_n_per_m > 0, "",
+                    "mechanics.spring_stiffness_n_per_m", "must be > 0, got ",
+                    spring_stiffness_n_per_m);
+  ARREG_CHECK_INPUT(substeps >= 1, "", "mechanics.substeps", "must be >= 1, got ", substeps);
+  ARREG_CHECK_INPUT(newton_iterations >= 1, "", "mechanics.newton_iterations", "must be >= 1, got ",
+                    newton_iterations);
+  ARREG_CHECK_INPUT(std::isfinite(rayleigh_mass_per_s), "", "mechanics.rayleigh_mass_per_s",
+                    "must be finite");
+  ARREG_CHECK_INPUT(std::isfinite(rayleigh_stiffness_s), "", "mechanics.rayleigh_stiffness_s",
+                    "must be finite");
+  ARREG_CHECK_INPUT(gravity_mm_per_s2.allFinite(), "", "mechanics.gravity_mm_per_s2",
+                    "must be finite");
+  for (int v : fixed_vertices)
+    ARREG_CHECK_INPUT(v >= 0, "", "mechanics.fixed_vertices", "indices must be >= 0, got ", v);
+  ARREG_CHECK_INPUT(linear_solver == "cholmod" || linear_solver == "cg", "",
+                    "mechanics.linear_solver", "must be \"cholmod\" or \"cg\", got \"",
+                    linear_solver, "\"");
+}
+
+void CuttingStageOptions::Check() const {
+  detector.Check();
+  ARREG_CHECK_INPUT(std::isfinite(spring_margin_mm) && spring_margin_mm >= 0, "",
+                    "cutting.spring_margin_mm", "must be >= 0, got ", spring_margin_mm);
+  ARREG_CHECK_INPUT(std::isfinite(extrusion_margin_mm) && extrusion_margin_mm >= 0, "",
+                    "cutting.extrusion_margin_mm", "must be >= 0, got ", extrusion_margin_mm);
+  ARREG_CHECK_INPUT(method == "flips" || method == "bielser", "", "cutting.method",
+                    "must be \"flips\" or \"bielser\", got \"", method, "\"");
+}
+
+void RenderStageOptions::Check() const {
+  ARREG_CHECK_INPUT(supersampling >= 1 && supersampling <= 8, "", "render.supersampling",
+                    "must be in [1, 8], got ", supersampling);
+  ARREG_CHECK_INPUT(organ_opacity >= 0 && organ_opacity <= 1, "", "render.organ_opacity",
+                    "must be in [0, 1], got ", organ_opacity);
+  ARREG_CHECK_INPUT(organ_color.minCoeff() >= 0 && organ_color.maxCoeff() <= 1, "",
+                    "render.organ_color", "components must be in [0, 1]");
+}
+
+void OutputStageOptions::Check() const {
+  ARREG_CHECK_INPUT(crf >= 0 && crf <= 51, "", "output.crf", "must be in [0, 51], got ", crf);
+  ARREG_CHECK_INPUT(encode_threads >= 0, "", "output.encode_threads", "must be >= 0, got ",
+                    encode_threads);
+  ARREG_CHECK_INPUT(save_every >= 1, "", "output.save_every", "must be >= 1, got ", save_every);
+}
+
+void PipelineOptions::Check() const {
+  tracking.Check();
+  lifting.Check();
+  mechanics.Check();
+  cutting.Check();
+  render.Check();
+  output.Check();
+  ARREG_CHECK_INPUT(max_frames == -1 || max_frames >= 1, "", "max_frames",
+                    "must be -1 (all) or >= 1, got ", max_frames);
+  ARREG_CHECK_INPUT(roi_dilation_px >= -1, "", "roi_dilation_px", "must be >= -1, got ",
+                    roi_dilation_px);
+}
+
+namespace {
+
+void ReadTracking(const Scene& scene, FeatureTrackerOptions* o) {
+  JsonObjectReader r(scene.tracking, scene.path, "tracking");
+  r.Optional("max_features", &o->max_features);
+  r.Optional("hessian_threshold", &o->surf.hessian_threshold);
+  r.Optional("min_distance_px", &o->min_distance_px);
+  r.Optional("border_px", &o->border_px);
+  r.Optional("redetect_every_frames", &o->redetect_every_frames);
+  r.Optional("window_px", &o->lk.window_px);
+  r.Optional("pyramid_levels", &o->lk.pyramid_levels);
+  r.Optional("forward_backward_max_px", &o->lk.forward_backward_max_px);
+  r.Optional("outlier_filter", &o->outliers.enabled);
+  r.Optional("outlier_ratio", &o->outliers.ratio);
+  r.Optional("outlier_slack_px", &o->outliers.slack_px);
+  r.Optional("specular_filter", &o->specular.enabled);
+  r.Finish();
+}
+
+void ReadLifting(const Scene& scene, lift::FeatureLifterOptions* o) {
+  JsonObjectReader r(scene.lifting, scene.path, "lifting");
+  std::string target = o->target == lift::LiftTarget::kPlane ? "plane" : "surface";
+  r.OptionalChoice("target", {"surface", "plane"}, &target);
+  o->target = target == "plane" ? lift::LiftTarget::kPlane : lift::LiftTarget::kSurface;
+  std::string update = "intercept";
+  r.OptionalChoice("surface_update", {"intercept", "raycast"}, &update);
+  o->surface_update = update == "raycast" ? lift::SurfaceUpdate::kRayCastWithFallback
+                                          : lift::SurfaceUpdate::kInterceptTheorem;
+  r.Optional("max_depth_jump_mm", &o->max_depth_jump_mm);
+  r.Finish();
+}
+
+void ReadMechanics(const Scene& scene, MechanicsStageOptions* o) {
+  JsonObjectReader r(scene.mechanics, scene.path, "mechanics");
+  r.Optional("spring_stiffness_n_per_m", &o->spring_stiffness_n_per_m);
+  r.Optional("substeps", &o->substeps);
+  r.Optional("newton_iterations", &o->newton_iterations);
+  r.Optional("rayleigh_mass_per_s", &o->rayleigh_mass_per_s);
+  r.Optional("rayleigh_stiffness_s", &o->rayleigh_stiffness_s);
+  r.Optional("gravity_mm_per_s2", &o->gravity_mm_per_s2);
+  r.Optional("fixed_vertices", &o->fixed_vertices);
+  r.OptionalChoice("linear_solver", {"cholmod", "cg"}, &o->linear_solver);
+  r.Finish();
+}
+
+void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
+  JsonObjectReader r(scene.cutting, scene.path, "cutting");
+  r.Optional("enabled", &o->enabled);
+  r.Optional("neighbour_radius_mm", &o->detector.neighbour_radius_mm);
+  r.Optional("outlier_factor", &o->detector.outlier_factor);
+  r.Optional("min_outliers", &o->detector.min_outliers);
+  r.Optional("cut_point_radius_mm", &o->detector.cut_point_radius_mm);
+  r.Optional("spring_margin_mm", &o->spring_margin_mm);
+  r.Optional("extrusion_margin_mm", &o->extrusion_margin_mm);
+  r.OptionalChoice("method", {"flips", "bielser"}, &o->method);
+  r.Finish();
+}
+
+void ReadRender(const Scene& scene, RenderStageOptions* o) {
+  JsonObjectReader r(scene.render, scene.path, "render");
+  r.Optional("supersampling", &o->supersampling);
+  r.Optional("organ_opacity", &o->organ_opacity);
+  r.Optional("organ_color", &o->organ_color);
+  r.Optional("wireframe", &o->wireframe);
+  r.Optional("show_features", &o->show_features);
+  r.Optional("show_targets", &o->show_targets);
+  r.Optional("show_springs", &o->show_springs);
+  r.Finish();
+}
+
+void ReadOutput(const Scene& scene, OutputStageOptions* o) {
+  JsonObjectReader r(scene.output, scene.path, "output");
+  r.Optional("video", &o->video);
+  r.Optional("crf", &o->crf);
+  r.Optional("png_frames", &o->png_frames);
+  r.Optional("save_every", &o->save_every);
+  r.Finish();
+}
+
+}  // namespace
+
+PipelineOptions ReadPipelineOptions(const Scene& scene) {
+  PipelineOptions o;
+  o.tracking.max_features = 500;
+  ReadTracking(scene, &o.tracking);
+  ReadLifting(scene, &o.lifting);
+  ReadMechanics(scene, &o.mechanics);
+  ReadCutting(scene, &o.cutting);
+  ReadRender(scene, &o.render);
+  ReadOutput(scene, &o.output);
+  try {
+    o.Check();
+  } catch (const Error& e) {
+    throw Error(scene.path, "", e.what());
+  }
+  return o;
+}
+
+nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
+  using nlohmann::json;
+  auto vec = [](const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); };
+  json j;
+  j["tracking"] = {{"max_features", o.tracking.max_features},
+                   {"hessian_threshold", o.tracking.surf.hessian_threshold},
+                   {"min_distance_px", o.tracking.min_distance_px},
+                   {"border_px", o.tracking.border_px},
+                   {"redetect_every_frames", o.tracking.redetect_every_frames},
+                   {"window_px", o.tracking.lk.window_px},
+                   {"pyramid_levels", o.tracking.lk.pyramid_levels},
+                   {"forward_backward_max_px", o.tracking.lk.forward_backward_max_px},
+                   {"outlier_filter", o.tracking.outliers.enabled},
+                   {"outlier_ratio", o.tracking.outliers.ratio},
+                   {"outlier_slack_px", o.tracking.outliers.slack_px},
+                   {"specular_filter", o.tracking.specular.enabled}};
+  j["lifting"] = {
+      {"target", o.lifting.target == lift::LiftTarget::kPlane ? "plane" : "surface"},
+      {"surface_update", o.lifting.surface_update == lift::SurfaceUpdate::kRayCastWithFallback
+                             ? "raycast"
+                             : "intercept"},
+      {"max_depth_jump_mm", o.lifting.max_depth_jump_mm}};
+  j["mechanics"] = {{"spring_stiffness_n_per_m", o.mechanics.spring_stiffness_n_per_m},
+                    {"substeps", o.mechanics.substeps},
+                    {"newton_iterations", o.mechanics.newton_iterations},
+                    {"rayleigh_mass_per_s", o.mechanics.rayleigh_mass_per_s},
+                    {"rayleigh_stiffness_s", o.mechanics.rayleigh_stiffness_s},
+                    {"gravity_mm_per_s2", vec(o.mechanics.gravity_mm_per_s2)},
+                    {"fixed_vertices", o.mechanics.fixed_vertices},
+                    {"linear_solver", o.mechanics.linear_solver}};
+  j["cutting"] = {{"enabled", o.cutting.enabled},
+                  {"neighbour_radius_mm", o.cutting.detector.neighbour_radius_mm},
+                  {"outlier_factor", o.cutting.detector.outlier_factor},
+                  {"min_outliers", o.cutting.detector.min_outliers},
+                  {"cut_point_radius_mm", o.cutting.detector.cut_point_radius_mm},
+                  {"spring_margin_mm", o.cutting.spring_margin_mm},
+                  {"extrusion_margin_mm", o.cutting.extrusion_margin_mm},
+                  {"method", o.cutting.method}};
+  j["render"] = {{"enabled", o.render.enabled},
+                 {"supersampling", o.render.supersampling},
+                 {"organ_opacity", o.render.organ_opacity},
+                 {"organ_color", vec(o.render.organ_color)},
+                 {"wireframe", o.render.wireframe},
+                 {"show_features", o.render.show_features},
+                 {"show_targets", o.render.show_targets},
+                 {"show_springs", o.render.show_springs}};
+  j["output"] = {{"video", o.output.video},
+                 {"crf", o.output.crf},
+                 {"encode_threads", o.output.encode_threads},
+                 {"png_frames", o.output.png_frames},
+                 {"save_every", o.output.save_every}};
+  j["max_frames"] = o.max_frames;
+  j["roi_dilation_px"] = o.roi_dilation_px;
+  return j;
+}
+
+}  // namespace arreg::pipeline

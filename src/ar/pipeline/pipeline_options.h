@@ -1,0 +1,104 @@
+// Options of the registration pipeline (`arreg run`), one struct per stage, read from the
+// scene's module sections (tracking, lifting, mechanics, cutting, render, output) with checks.
+#pragma once
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "ar/lift/lifting.h"
+#include "core/scene.h"
+#include "cutting/detection.h"
+#include "tracking/tracker.h"
+
+namespace arreg::pipeline {
+
+// Mechanics stage: zero-length springs from embedded features to lifted targets and one
+// implicit Euler step per frame (thesis 7.4.3).
+struct MechanicsStageOptions {
+  // Stiffness of each feature spring [N/m = mN/mm]. Default 500: with a few hundred springs
+  // the image coupling (~1e5 N/m) dominates the elastic stiffness of a 10 cm organ of E up to
+  // 100 kPa (~1e4 N/m), so the model follows the targets within a few percent of their motion
+  // while elasticity still interpolates between features (measured in docs/pipeline.md).
+  double spring_stiffness_n_per_m = 500.0;
+  int substeps = 1;  // implicit Euler sub-steps per video frame [count]; default 1
+  // Newton iterations per sub-step: 1 (default) is the thesis' one-step scheme; more iterate
+  // to convergence (newton_tolerance_mm 1e-6).
+  int newton_iterations = 1;
+  // Rayleigh damping [1/s] and [s]; negative (default) takes the scene's material values.
+  double rayleigh_mass_per_s = -1.0;
+  double rayleigh_stiffness_s = -1.0;
+  // Gravity in the world frame [mm/s^2]; default zero (registration needs none: the image
+  // springs carry the motion and the model is registered at frame 0 in its loaded pose).
+  Eigen::Vector3d gravity_mm_per_s2 = Eigen::Vector3d::Zero();
+  // Model vertices held at their frame-0 position (indices into the model mesh); default none.
+  std::vector<int> fixed_vertices;
+  std::string linear_solver = "cholmod";  // "cholmod" (default) or "cg"
+  void Check() const;
+};
+
+// Cutting stage (thesis 7.5): detection every frame, extrusion of the polyline into S,
+// remeshing, mechanics follow, re-embedding and spring removal.
+struct CuttingStageOptions {
+  bool enabled = true;  // false is `--no-topology`; default true
+  cutting::CutDetectorOptions detector;
+  // [mm] springs whose anchor lies closer than this to S are removed (thesis margin r). Default 4.
+  double spring_margin_mm = 4.0;
+  // [mm] S extends this far beyond the model's depth range along the rays. Default 10.
+  double extrusion_margin_mm = 10.0;
+  // Remeshing method: "flips" (default, thesis 5.1) or "bielser".
+  std::string method = "flips";
+  void Check() const;
+};
+
+// Overlay rendering (z-buffered, anti-aliased) drawn over the decoded frame.
+struct RenderStageOptions {
+  bool enabled = true;          // render the overlay at all (bench without); default true
+  int supersampling = 2;        // samples per pixel and axis (anti-aliasing); default 2
+  double organ_opacity = 0.35;  // in [0, 1]; default 0.35 (internal structures show through)
+  Eigen::Vector3d organ_color = Eigen::Vector3d(0.95, 0.55, 0.45);  // linear RGB in [0, 1]
+  bool wireframe = false;      // draw the model's surface edges; default false
+  bool show_features = false;  // tracked feature pixels (green); default false
+  bool show_targets = false;   // lifted targets projected (blue); default false
+  bool show_springs = false;   // anchor-target segments projected (yellow); default false
+  void Check() const;
+};
+
+// What is written into the run folder (docs/run-format.md).
+struct OutputStageOptions {
+  bool video = true;  // overlay.mp4; default true
+  int crf = 18;       // x264 quality of overlay.mp4 (0..51); default 18
+  // x264 encoder threads; 1 (default) keeps timings single-threaded, 0 lets FFmpeg choose.
+  int encode_threads = 1;
+  bool png_frames = false;  // also frames/NNNNNN.png; default false
+  // Meshes every k-th frame when the scene has no ground truth (else gt's surface_every_k);
+  // the last frame is always written. Default 10.
+  int save_every = 10;
+  void Check() const;
+};
+
+struct PipelineOptions {
+  FeatureTrackerOptions tracking;
+  lift::FeatureLifterOptions lifting;
+  MechanicsStageOptions mechanics;
+  CuttingStageOptions cutting;
+  RenderStageOptions render;
+  OutputStageOptions output;
+  int max_frames = -1;  // process at most this many frames; -1 (default) = the whole video
+  // Dilation [px] of the projected model silhouette used as the tracker's ROI at every frame;
+  // -1 (default) uses the silhouette only at frame 0 (detection) and the whole image afterwards.
+  int roi_dilation_px = -1;
+  // Throws arreg::Error naming the field.
+  void Check() const;
+};
+
+// Reads the options from the scene's module sections (unknown keys are errors naming
+// "scene.json: mechanics.sprng_stiffness"); missing keys keep the defaults above, except
+// `tracking.max_features`, whose pipeline default is 500.
+PipelineOptions ReadPipelineOptions(const Scene& scene);
+
+// Every option as JSON (the `options` object of run.json).
+nlohmann::json PipelineOptionsToJson(const PipelineOptions& options);
+
+}  // namespace arreg::pipeline

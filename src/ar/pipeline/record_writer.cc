@@ -1,0 +1,149 @@
+#include "ar/pipeline/record_writer.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+
+#include "ar/pipeline/pipeline_options.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/mesh_io.h"
+#include "core/mesh_ops.h"
+#include "core/version.h"
+
+namespace arreg::pipeline {
+
+namespace {
+
+std::string FramePath(const std::string& dir, const char* sub, int frame, const char* ext) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "%06d%s", frame, ext);
+  return dir + "/" + sub + "/" + name;
+}
+
+// JSON numbers must be finite; a non-finite length would make the line unreadable.
+nlohmann::json Finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+
+}  // namespace
+
+nlohmann::json FrameRecord(const FrameState& f) {
+  nlohmann::json j;
+  j["frame"] = f.frame;
+  j["features_alive"] = f.stats.features_alive;
+  j["outliers"] = f.stats.outliers;
+  j["lost"] = f.stats.lost;
+  const bool any = f.stats.features_alive > 0;
+  j["spring_length_mean_mm"] = any ? Finite(f.stats.spring_length_mean_mm) : nlohmann::json();
+  j["spring_length_max_mm"] = any ? Finite(f.stats.spring_length_max_mm) : nlohmann::json();
+  // Zero-length springs: the spring length is the feature error |p_F^t - p_F^1|.
+  j["feature_error_mean_mm"] = j["spring_length_mean_mm"];
+  j["feature_error_max_mm"] = j["spring_length_max_mm"];
+  j["mechanics_status"] = f.stats.mechanics_status;
+  j["inverted_elements"] = f.stats.inverted_elements;
+  nlohmann::json cuts = nlohmann::json::array();
+  if (f.cut_events)
+    for (const CutEvent& e : *f.cut_events) cuts.push_back(e.ToJson());
+  j["cut_events"] = cuts;
+  j["ms"] = f.ms.ToJson();
+  return j;
+}
+
+void WriteInternalObj(const std::string& path, const std::vector<SurfaceMesh>& meshes,
+                      const std::vector<std::string>& names) {
+  WriteFileAtomic(path, [&](std::ostream& out) {
+    out << "# arreg run: internal structures\n";
+    char line[128];
+    int base = 1;
+    for (size_t k = 0; k < meshes.size(); ++k) {
+      out << "o " << (k < names.size() ? names[k] : "structure" + std::to_string(k)) << "\n";
+      const SurfaceMesh& m = meshes[k];
+      for (int i = 0; i < m.vertices.rows(); ++i) {
+        std::snprintf(line, sizeof(line), "v %.9g %.9g %.9g\n", m.vertices(i, 0), m.vertices(i, 1),
+                      m.vertices(i, 2));
+        out << line;
+      }
+      for (int i = 0; i < m.faces.rows(); ++i)
+        out << "f " << m.faces(i, 0) + base << " " << m.faces(i, 1) + base << " "
+            << m.faces(i, 2) + base << "\n";
+      base += static_cast<int>(m.vertices.rows());
+    }
+  });
+}
+
+RecordWriter::RecordWriter(std::string out_dir, bool write_png)
+    : out_dir_(std::move(out_dir)), write_png_(write_png) {}
+
+RecordWriter::~RecordWriter() {
+  // Without OnFinish (an exception ended the run) the partial frames.jsonl is removed.
+  if (jsonl_.is_open()) {
+    jsonl_.close();
+    std::error_code ec;
+    std::filesystem::remove(jsonl_temporary_, ec);
+  }
+}
+
+void RecordWriter::OnStart(const RunStart& start) {
+  CreateDirectories(out_dir_);
+  for (const char* sub : {"mesh", "surface", "internal"}) CreateDirectories(out_dir_ + "/" + sub);
+  if (write_png_) CreateDirectories(out_dir_ + "/frames");
+  jsonl_temporary_ = TemporaryPathFor(out_dir_ + "/frames.jsonl");
+  jsonl_.open(jsonl_temporary_, std::ios::out | std::ios::trunc);
+  ARREG_CHECK_INPUT(jsonl_.good(), out_dir_ + "/frames.jsonl", "", "cannot write");
+  const Scene& scene = *start.scene;
+  run_ = nlohmann::json::object();
+  run_["version"] = kVersion;
+  run_["scene"] = scene.path;
+  run_["camera"] = CameraToJson(scene.camera);
+  run_["video"] = scene.video_path;
+  run_["options"] = PipelineOptionsToJson(*start.options);
+  run_["model"] = {{"vertices", start.model_vertices}, {"tetrahedra", start.model_tetrahedra}};
+  run_["features"] = {{"detected", start.features_detected}, {"attached", start.features_attached}};
+  run_["fps_video"] = start.fps;
+}
+
+void RecordWriter::OnFrame(const FrameState& f) {
+  jsonl_ << FrameRecord(f).dump() << '\n';
+  ARREG_CHECK_INPUT(jsonl_.good(), out_dir_ + "/frames.jsonl", "", "write failed");
+  if (f.save_meshes) {
+    WriteTetMesh(FramePath(out_dir_, "mesh", f.frame, ".vtk"), f.state->CurrentMesh());
+    SurfaceMesh surface;
+    surface.vertices = f.surface->vertices;
+    surface.faces = f.surface->faces;
+    RemoveUnreferencedVertices(&surface);
+    WriteSurfaceMesh(FramePath(out_dir_, "surface", f.frame, ".obj"), surface);
+    if (f.internal && !f.internal->empty())
+      WriteInternalObj(FramePath(out_dir_, "internal", f.frame, ".obj"), *f.internal,
+                       *f.internal_names);
+  }
+  if (write_png_ && f.overlay && !f.overlay->empty()) {
+    const std::string path = FramePath(out_dir_, "frames", f.frame, ".png");
+    const std::string tmp = TemporaryPathFor(path);
+    ARREG_CHECK_INPUT(cv::imwrite(tmp, *f.overlay), path, "", "cannot write");
+    CommitTemporaryFile(tmp, path);
+  }
+}
+
+void RecordWriter::OnFinish(const RunSummary& s) {
+  jsonl_.close();
+  CommitTemporaryFile(jsonl_temporary_, out_dir_ + "/frames.jsonl");
+  run_["frames"] = s.frames;
+  run_["topology"] = s.topology;
+  run_["interrupted"] = s.interrupted;
+  run_["cut_events"] = s.cut_events;
+  run_["cuts_applied"] = s.cuts_applied;
+  run_["seconds"] = s.seconds;
+  nlohmann::json totals = s.total_ms.ToJson();
+  nlohmann::json per_stage_fps = nlohmann::json::object();
+  for (auto& [stage, total] : totals.items()) {
+    const double t = total.get<double>();
+    per_stage_fps[stage] = t > 0 ? Finite(1000.0 * s.frames / t) : nlohmann::json();
+  }
+  run_["totals"] = {
+      {"ms", totals},
+      {"fps", per_stage_fps},
+      {"fps_end_to_end",
+       s.total_ms.Total() > 0 ? Finite(1000.0 * s.frames / s.total_ms.Total()) : nlohmann::json()}};
+  WriteFileAtomic(out_dir_ + "/run.json", [&](std::ostream& out) { out << run_.dump(2) << '\n'; });
+}
+
+}  // namespace arreg::pipeline

@@ -1,0 +1,532 @@
+#include "ar/pipeline/registration_pipeline.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <optional>
+#include <unordered_map>
+
+#include "ar/lift/lifting.h"
+#include "ar/pipeline/overlay.h"
+#include "ar/render/rasterizer.h"
+#include "core/error.h"
+#include "core/file_util.h"
+#include "core/json_reader.h"
+#include "core/log.h"
+#include "core/mesh_io.h"
+#include "core/mesh_ops.h"
+#include "cutting/cut_extrusion.h"
+#include "cutting/cut_surface.h"
+#include "cutting/mechanics_update.h"
+#include "cutting/tet_cutter.h"
+#include "mechanics/elastic_energy.h"
+#include "mechanics/embedding.h"
+#include "mechanics/integrator.h"
+#include "mechanics/mechanical_state.h"
+#include "mechanics/spring_energy.h"
+#include "tracking/video_io.h"
+
+namespace arreg::pipeline {
+
+StageTimes& StageTimes::operator+=(const StageTimes& o) {
+  decode += o.decode;
+  track += o.track;
+  lift += o.lift;
+  mechanics += o.mechanics;
+  cutting += o.cutting;
+  render += o.render;
+  encode += o.encode;
+  record += o.record;
+  return *this;
+}
+
+nlohmann::json StageTimes::ToJson() const {
+  return {{"decode", decode},   {"track", track},   {"lift", lift},     {"mechanics", mechanics},
+          {"cutting", cutting}, {"render", render}, {"encode", encode}, {"record", record}};
+}
+
+nlohmann::json CutEvent::ToJson() const {
+  return {{"frame", frame},
+          {"status", status},
+          {"message", message},
+          {"polyline_points", polyline_points},
+          {"new_tetrahedra", new_tetrahedra},
+          {"new_vertices", new_vertices},
+          {"springs_removed", springs_removed},
+          {"internal_triangles_removed", internal_triangles_removed}};
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double MsSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+RowMatX3d Transform(const RowMatX3d& points, double scale, const Eigen::Isometry3d& t) {
+  RowMatX3d out(points.rows(), 3);
+  for (int i = 0; i < points.rows(); ++i)
+    out.row(i) = (t * (scale * points.row(i).transpose())).transpose();
+  return out;
+}
+
+// surface_every_k of a ground-truth folder, 0 when it has none.
+int GroundTruthEveryK(const Scene& scene) {
+  if (scene.ground_truth_path.empty()) return 0;
+  const std::string meta = scene.ground_truth_path + "/meta.json";
+  if (!FileExists(meta)) return 0;
+  const nlohmann::json j = ParseJsonFile(meta);
+  int k = 0;
+  if (j.contains("surface_every_k"))
+    ReadJsonValue(j.at("surface_every_k"), meta, "surface_every_k", &k);
+  return std::max(k, 0);
+}
+
+mechanics::Material ToMechanicsMaterial(const Material& m) {
+  mechanics::Material out;
+  out.youngs_modulus_pa = m.youngs_modulus_pa;
+  out.poisson_ratio = m.poisson_ratio;
+  out.density_kg_per_m3 = m.density_kg_m3;
+  return out;
+}
+
+}  // namespace
+
+LoadedModel LoadSceneModel(const Scene& scene) {
+  LoadedModel model;
+  model.mesh = ReadTetMesh(scene.model_mesh_path);
+  model.mesh.vertices = Transform(model.mesh.vertices, scene.mm_per_unit, scene.world_from_model);
+  FixOrientation(&model.mesh);
+  for (const InternalStructure& s : scene.internal_structures) {
+    SurfaceMesh mesh = ReadSurfaceMesh(s.mesh_path);
+    mesh.vertices = Transform(mesh.vertices, scene.mm_per_unit, scene.world_from_model);
+    mesh.normals.resize(0, 3);
+    model.internal.push_back(std::move(mesh));
+    model.internal_names.push_back(s.name);
+    model.internal_colors.push_back(s.color_rgb);
+    model.internal_opacity.push_back(s.opacity);
+  }
+  return model;
+}
+
+struct RegistrationPipeline::Impl {
+  Scene scene;
+  PipelineOptions options;
+  std::vector<FrameObserver*> observers;
+  LoadedModel model;
+  VideoReader reader;
+};
+
+RegistrationPipeline::RegistrationPipeline(const Scene& scene, const PipelineOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->scene = scene;
+  impl_->options = options;
+  options.Check();
+  scene.camera.Check(scene.path);
+  impl_->model = LoadSceneModel(scene);
+  impl_->reader.Open(scene.video_path);
+  ARREG_CHECK_INPUT(
+      impl_->reader.width() == scene.camera.width && impl_->reader.height() == scene.camera.height,
+      scene.video_path, "size", "video is ", impl_->reader.width(), "x", impl_->reader.height(),
+      " but the camera is ", scene.camera.width, "x", scene.camera.height);
+  for (int v : options.mechanics.fixed_vertices)
+    ARREG_CHECK_INPUT(v < impl_->model.mesh.vertices.rows(), scene.path, "mechanics.fixed_vertices",
+                      "index ", v, " >= vertex count ", impl_->model.mesh.vertices.rows());
+}
+
+RegistrationPipeline::~RegistrationPipeline() = default;
+void RegistrationPipeline::AddObserver(FrameObserver* observer) {
+  impl_->observers.push_back(observer);
+}
+const Scene& RegistrationPipeline::scene() const { return impl_->scene; }
+const PipelineOptions& RegistrationPipeline::options() const { return impl_->options; }
+
+RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
+  const Scene& scene = impl_->scene;
+  const PipelineOptions& o = impl_->options;
+  const PinholeCamera& camera = scene.camera;
+  VideoReader& reader = impl_->reader;
+  reader.Seek(0);
+  const double fps = reader.fps() > 0 ? reader.fps() : 25.0;
+  int num_frames = reader.frame_count();
+  if (o.max_frames > 0) num_frames = std::min(num_frames, o.max_frames);
+  int save_every = run_options.save_every;
+  if (save_every <= 0) save_every = GroundTruthEveryK(scene);
+  if (save_every <= 0) save_every = o.output.save_every;
+
+  // --- Mechanics setup.
+  mechanics::MechanicalState state(impl_->model.mesh, ToMechanicsMaterial(scene.material));
+  state.SetFixed(o.mechanics.fixed_vertices);
+  mechanics::CorotationalElasticity elastic;
+  mechanics::SpringEnergy springs;
+  std::optional<mechanics::GravityEnergy> gravity;
+  std::vector<mechanics::EnergyTerm*> terms = {&springs};
+  if (o.mechanics.gravity_mm_per_s2.squaredNorm() > 0) {
+    gravity.emplace(o.mechanics.gravity_mm_per_s2);
+    terms.push_back(&*gravity);
+  }
+  mechanics::ImplicitEulerOptions io;
+  io.dt_s = 1.0 / fps;
+  io.substeps = o.mechanics.substeps;
+  io.newton_mode = o.mechanics.newton_iterations > 1 ? mechanics::NewtonMode::kFullNewton
+                                                     : mechanics::NewtonMode::kOneStep;
+  io.max_newton_iterations = o.mechanics.newton_iterations;
+  io.newton_tolerance_mm = 1e-6;
+  io.rayleigh_mass_alpha = o.mechanics.rayleigh_mass_per_s >= 0
+                               ? o.mechanics.rayleigh_mass_per_s
+                               : scene.material.rayleigh_mass_per_s;
+  io.rayleigh_stiffness_beta = o.mechanics.rayleigh_stiffness_s >= 0
+                                   ? o.mechanics.rayleigh_stiffness_s
+                                   : scene.material.rayleigh_stiffness_s;
+  io.linear_solver.type = o.mechanics.linear_solver == "cg"
+                              ? mechanics::LinearSolverType::kConjugateGradient
+                              : mechanics::LinearSolverType::kCholmod;
+  mechanics::ImplicitEulerIntegrator integrator(io);
+
+  SurfaceMesh surface = ExtractBoundary(state.CurrentMesh());
+  const RowMatX3i frame0_faces = surface.faces;  // lifting keeps frame-0 connectivity
+  std::vector<SurfaceMesh> internal = impl_->model.internal;
+  const std::vector<RowMatX3d> internal_rest = [&] {
+    std::vector<RowMatX3d> r;
+    for (const SurfaceMesh& m : internal) r.push_back(m.vertices);
+    return r;
+  }();
+  std::vector<mechanics::EmbeddedPoints> internal_embedding;
+  for (const SurfaceMesh& m : internal)
+    internal_embedding.push_back(
+        mechanics::EmbeddedPoints::Embed(m.vertices, state.rest_positions(), state.tetrahedra()));
+
+  // --- Frame 0: detection inside the model's silhouette, attachment by ray casting.
+  const render::RasterCamera raster = ToRasterCamera(camera);
+  cv::Mat bgr;
+  StageTimes ms;
+  auto t0 = Clock::now();
+  ARREG_CHECK_INPUT(reader.Read(&bgr), scene.video_path, "frame 0", "cannot read the first frame");
+  ms.decode = MsSince(t0);
+
+  t0 = Clock::now();
+  FeatureTracker tracker(o.tracking);
+  cv::Mat roi = render::RenderMask(raster, surface.vertices, surface.faces);
+  tracker.Initialize(bgr, roi);
+  std::vector<FeatureView> features;
+  std::unordered_map<int, int> row_of_id;
+  RowMatX2d pixels(tracker.current().size(), 2);
+  for (const FeatureState& f : tracker.current()) {
+    const int r = static_cast<int>(features.size());
+    FeatureView v;
+    v.id = f.id;
+    v.pixel = Eigen::Vector2d(f.position_px.x, f.position_px.y);
+    v.track_status = f.status;
+    pixels.row(r) = v.pixel.transpose();
+    row_of_id[f.id] = r;
+    features.push_back(v);
+  }
+  ms.track = MsSince(t0);
+  const int nf = static_cast<int>(features.size());
+
+  t0 = Clock::now();
+  lift::FeatureLifter lifter(o.lifting);
+  const std::vector<lift::FeatureAttachment> attachments =
+      lifter.Attach(camera, pixels, &surface, std::nullopt);
+  ms.lift = MsSince(t0);
+
+  t0 = Clock::now();
+  RowMatX3d attach_points(nf, 3);
+  for (int r = 0; r < nf; ++r) attach_points.row(r) = attachments[r].point_mm.transpose();
+  mechanics::EmbeddedPoints feature_embedding =
+      mechanics::EmbeddedPoints::Embed(attach_points, state.rest_positions(), state.tetrahedra());
+  int attached = 0;
+  for (int r = 0; r < nf; ++r) {
+    FeatureView& v = features[r];
+    v.lift_status = lifter.status()[r];
+    if (!attachments[r].attached) continue;
+    v.spring = springs.Add(feature_embedding[r], attachments[r].point_mm,
+                           o.mechanics.spring_stiffness_n_per_m);
+    v.alive = v.spring_active = true;
+    ++attached;
+  }
+  ms.mechanics = MsSince(t0);
+
+  // Cut detection over the attached features (detector ids = feature rows).
+  std::optional<cutting::CutDetector> detector;
+  cutting::DetectionResult detection;
+  const bool topology = o.cutting.enabled;
+  if (topology) {
+    std::vector<int> ids;
+    for (int r = 0; r < nf; ++r)
+      if (features[r].alive) ids.push_back(r);
+    RowMatX3d p0(ids.size(), 3);
+    for (size_t i = 0; i < ids.size(); ++i) p0.row(i) = attach_points.row(ids[i]);
+    detector.emplace(o.cutting.detector);
+    detector->Initialize(p0, ids);
+  }
+
+  OverlayRenderer overlay(camera, o.render);
+  VideoWriter writer;
+  if (!run_options.overlay_video_path.empty()) {
+    VideoWriterOptions wo;
+    wo.crf = o.output.crf;
+    wo.encode_threads = o.output.encode_threads;
+    writer.Open(run_options.overlay_video_path, camera.width, camera.height, fps, wo);
+  }
+
+  RunStart start;
+  start.scene = &scene;
+  start.options = &o;
+  start.expected_frames = num_frames;
+  start.fps = fps;
+  start.width = camera.width;
+  start.height = camera.height;
+  start.model_vertices = state.num_vertices();
+  start.model_tetrahedra = state.num_tetrahedra();
+  start.features_detected = nf;
+  start.features_attached = attached;
+  for (FrameObserver* ob : impl_->observers) ob->OnStart(start);
+  ARREG_LOG_INFO("run: ", nf, " features detected in the model silhouette, ", attached,
+                 " attached to the surface");
+
+  RunSummary summary;
+  summary.topology = topology;
+  RowMatX3d anchors(nf, 3), targets = attach_points;
+  std::vector<char> tracked(nf, 1), alive_rows(nf, 0);
+  std::optional<SurfaceMesh> cut_surface;
+  std::vector<CutEvent> events;
+  cv::Mat overlay_image;
+  const auto run_start = Clock::now();
+  RowMatX3d frame0_surface_vertices;
+
+  for (int frame = 0; frame < num_frames; ++frame) {
+    events.clear();
+    FrameStats stats;
+    if (frame > 0) {
+      ms = StageTimes();
+      t0 = Clock::now();
+      if (!reader.Read(&bgr)) break;
+      ms.decode = MsSince(t0);
+
+      // Tracking.
+      t0 = Clock::now();
+      cv::Mat frame_roi;
+      if (o.roi_dilation_px >= 0) {
+        frame_roi = render::RenderMask(raster, surface.vertices, surface.faces);
+        if (o.roi_dilation_px > 0)
+          cv::dilate(
+              frame_roi, frame_roi,
+              cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * o.roi_dilation_px + 1,
+                                                                    2 * o.roi_dilation_px + 1)));
+      }
+      tracker.Track(bgr, frame_roi);
+      for (const FeatureState& f : tracker.current()) {
+        const auto it = row_of_id.find(f.id);
+        if (it == row_of_id.end()) continue;  // re-detected after frame 0: not attached
+        FeatureView& v = features[it->second];
+        v.pixel = Eigen::Vector2d(f.position_px.x, f.position_px.y);
+        v.track_status = f.status;
+        pixels.row(it->second) = v.pixel.transpose();
+        if (f.status != TrackStatus::kTracked && tracked[it->second]) {
+          ++stats.lost;
+          if (f.status == TrackStatus::kOutlierSpatioTemporal) ++stats.outliers;
+        }
+      }
+      for (int r = 0; r < nf; ++r) tracked[r] = features[r].track_status == TrackStatus::kTracked;
+      ms.track = MsSince(t0);
+
+      // Lifting.
+      t0 = Clock::now();
+      const RowMatX3d* cast_surface = nullptr;
+      if (o.lifting.surface_update == lift::SurfaceUpdate::kRayCastWithFallback) {
+        // The frame-0 boundary's vertices keep their indices through cuts (cuts only add).
+        frame0_surface_vertices = state.positions().topRows(impl_->model.mesh.vertices.rows());
+        cast_surface = &frame0_surface_vertices;
+      }
+      lifter.Update(camera, pixels, tracked, cast_surface);
+      targets = lifter.targets_mm();
+      ms.lift = MsSince(t0);
+
+      // Mechanics: springs follow the targets, one implicit Euler step.
+      t0 = Clock::now();
+      for (int r = 0; r < nf; ++r) {
+        FeatureView& v = features[r];
+        v.lift_status = lifter.status()[r];
+        if (!v.spring_active) continue;
+        if (!tracked[r]) {
+          springs.Remove(v.spring);
+          v.spring_active = false;
+          continue;
+        }
+        springs.SetTarget(v.spring, targets.row(r).transpose());
+      }
+      const mechanics::StepSummary step = integrator.Step(&state, &elastic, terms);
+      stats.mechanics_status = mechanics::StepStatusName(step.status);
+      stats.inverted_elements = step.inverted_elements;
+      ms.mechanics = MsSince(t0);
+    } else {
+      stats.mechanics_status = mechanics::StepStatusName(mechanics::StepStatus::kConverged);
+    }
+    feature_embedding.Positions(state.positions(), state.tetrahedra(), &anchors);
+
+    // Cutting.
+    if (topology) {
+      t0 = Clock::now();
+      cutting::FrameFeatures ff;
+      for (int r = 0; r < nf; ++r)
+        if (features[r].spring_active) ff.ids.push_back(r);
+      ff.target_mm.resize(ff.ids.size(), 3);
+      ff.model_mm.resize(ff.ids.size(), 3);
+      for (size_t i = 0; i < ff.ids.size(); ++i) {
+        ff.target_mm.row(i) = targets.row(ff.ids[i]);
+        ff.model_mm.row(i) = anchors.row(ff.ids[i]);
+      }
+      detector->Update(ff, &detection);
+      if (detection.segment_added && detection.extended_polyline_mm.size() >= 2) {
+        CutEvent ev;
+        ev.frame = frame;
+        ev.polyline_points = static_cast<int>(detection.extended_polyline_mm.size());
+        try {
+          const Eigen::Vector3d eye = camera.CenterInWorld();
+          const cutting::CutExtrusionOptions ext =
+              cutting::CutExtrusionCovering(detection.extended_polyline_mm, eye, state.positions(),
+                                            o.cutting.extrusion_margin_mm);
+          SurfaceMesh s = cutting::ExtrudeCutPolyline(detection.extended_polyline_mm, eye, ext);
+          const cutting::CutSurface cs{s.vertices, s.faces};
+          cutting::CuttableMesh cuttable(state.RestMesh(), state.positions(), state.velocities());
+          cutting::CutOptions co;
+          co.method = o.cutting.method == "bielser" ? cutting::RemeshMethod::kBielser
+                                                    : cutting::RemeshMethod::kFlips;
+          co.snap_epsilon = 0.0;  // MechanicalState keeps rest positions: no snapping
+          cutting::CutChange change;
+          const cutting::CutSummary cut = cuttable.Cut(cs, co, &change);
+          ev.message = cut.message;
+          if (cut.status == cutting::CutStatus::kCut) {
+            ev.status = "cut";
+            const int v_before = state.num_vertices(), t_before = state.num_tetrahedra();
+            const std::vector<int> new_elements = cutting::ApplyCutChange(change, &state);
+            cutting::ReembedAfterCut(change, new_elements, state, attach_points,
+                                     &feature_embedding);
+            for (int r = 0; r < nf; ++r)
+              if (features[r].spring >= 0)
+                springs.SetAnchor(features[r].spring, feature_embedding[r]);
+            for (size_t k = 0; k < internal.size(); ++k) {
+              cutting::ReembedAfterCut(change, new_elements, state, internal_rest[k],
+                                       &internal_embedding[k]);
+              const RowMatX3d current =
+                  internal_embedding[k].Positions(state.positions(), state.tetrahedra());
+              const RowMatX3i kept =
+                  cutting::RemoveTrianglesCrossing(current, internal[k].faces, cs);
+              ev.internal_triangles_removed +=
+                  static_cast<int>(internal[k].faces.rows() - kept.rows());
+              internal[k].faces = kept;
+            }
+            feature_embedding.Positions(state.positions(), state.tetrahedra(), &anchors);
+            for (int idx : cutting::PointsWithinMargin(s, anchors, o.cutting.spring_margin_mm)) {
+              FeatureView& v = features[idx];
+              if (!v.spring_active) continue;
+              springs.Remove(v.spring);
+              v.spring_active = false;
+              ++ev.springs_removed;
+            }
+            ev.new_vertices = state.num_vertices() - v_before;
+            ev.new_tetrahedra = state.num_tetrahedra() - t_before;
+            surface = ExtractBoundary(state.CurrentMesh());
+            ++summary.cuts_applied;
+          } else {
+            ev.status = cut.status == cutting::CutStatus::kNoCrossing ? "no-crossing" : "rejected";
+          }
+          cut_surface = std::move(s);
+        } catch (const Error& e) {
+          ev.status = "failed";
+          ev.message = e.what();
+          ARREG_LOG_WARNING("run: frame ", frame, ": cut not applied: ", e.what());
+        }
+        events.push_back(ev);
+        ++summary.cut_events;
+      }
+      ms.cutting = MsSince(t0);
+    }
+
+    // Update embedded structures and the boundary; statistics.
+    t0 = Clock::now();
+    surface.vertices = state.positions();
+    for (size_t k = 0; k < internal.size(); ++k)
+      internal_embedding[k].Positions(state.positions(), state.tetrahedra(), &internal[k].vertices);
+    double sum = 0;
+    for (int r = 0; r < nf; ++r) {
+      FeatureView& v = features[r];
+      v.alive = v.spring_active;
+      alive_rows[r] = v.alive;
+      v.spring_length_mm = v.alive ? (anchors.row(r) - targets.row(r)).norm() : 0.0;
+      if (!v.alive) continue;
+      ++stats.features_alive;
+      sum += v.spring_length_mm;
+      stats.spring_length_max_mm = std::max(stats.spring_length_max_mm, v.spring_length_mm);
+    }
+    stats.spring_length_mean_mm = stats.features_alive ? sum / stats.features_alive : 0.0;
+    ms.mechanics += MsSince(t0);
+
+    // Render and encode.
+    if (o.render.enabled) {
+      t0 = Clock::now();
+      bgr.copyTo(overlay_image);
+      std::vector<OverlayStructure> layers_internal;
+      for (size_t k = 0; k < internal.size(); ++k)
+        layers_internal.push_back({&internal[k].vertices, &internal[k].faces,
+                                   impl_->model.internal_colors[k],
+                                   impl_->model.internal_opacity[k]});
+      OverlayLayers layers;
+      layers.feature_pixels = &pixels;
+      layers.targets_mm = &targets;
+      layers.anchors_mm = &anchors;
+      layers.alive = &alive_rows;
+      overlay.Render(surface.vertices, surface.faces, layers_internal, layers, &overlay_image);
+      ms.render = MsSince(t0);
+    } else {
+      overlay_image = cv::Mat();
+    }
+    if (writer.is_open()) {
+      t0 = Clock::now();
+      writer.Write(overlay_image.empty() ? bgr : overlay_image);
+      ms.encode = MsSince(t0);
+    }
+
+    const bool stopping = run_options.stop != nullptr && run_options.stop->load();
+    FrameState fs;
+    fs.frame = frame;
+    fs.time_s = frame / fps;
+    fs.is_last = stopping || frame == num_frames - 1;
+    fs.save_meshes = fs.is_last || frame % save_every == 0;
+    fs.image = &bgr;
+    fs.overlay = &overlay_image;
+    fs.features = &features;
+    fs.targets_mm = &targets;
+    fs.anchors_mm = &anchors;
+    fs.detection = topology ? &detection : nullptr;
+    fs.cut_events = &events;
+    fs.cut_surface = cut_surface ? &*cut_surface : nullptr;
+    fs.state = &state;
+    fs.surface = &surface;
+    fs.internal = &internal;
+    fs.internal_names = &impl_->model.internal_names;
+    fs.stats = stats;
+    fs.ms = ms;
+    t0 = Clock::now();
+    for (FrameObserver* ob : impl_->observers) ob->OnFrame(fs);
+    ms.record = MsSince(t0);
+    summary.total_ms += ms;
+    ++summary.frames;
+    if (stopping && frame < num_frames - 1) {
+      summary.interrupted = true;
+      break;
+    }
+  }
+  if (writer.is_open()) {
+    const auto t = Clock::now();
+    writer.Close();
+    summary.total_ms.encode += MsSince(t);
+  }
+  summary.seconds = std::chrono::duration<double>(Clock::now() - run_start).count();
+  for (FrameObserver* ob : impl_->observers) ob->OnFinish(summary);
+  return summary;
+}
+
+}  // namespace arreg::pipeline
