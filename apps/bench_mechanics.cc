@@ -204,7 +204,7 @@ int RunBenchMechanics(int argc, char** argv) {
                    true);
   parser.AddString("solver", &s.solver, "S", "linear solver: cg or cholmod");
   parser.AddString("preconditioner", &s.preconditioner, "P",
-                   "CG preconditioner: none, jacobi, ichol");
+                   "CG preconditioner: none, jacobi, block-jacobi, ichol");
   parser.AddString("factorization", &s.factorization, "F",
                    "CHOLMOD factorisation: supernodal, simplicial, auto");
   parser.AddString("rotation", &s.rotation, "R", "element rotation: polar, polar-svd, qr");

@@ -1,8 +1,10 @@
 #include "mechanics/linear_solver.h"
 
+#include <Eigen/Cholesky>
 #include <Eigen/IterativeLinearSolvers>
 #include <Eigen/OrderingMethods>
 #include <cmath>
+#include <vector>
 
 #include "core/error.h"
 #include "mechanics/cholmod_solver.h"
@@ -22,8 +24,10 @@ const char* LinearSolverTypeName(LinearSolverType type) {
 Preconditioner ParsePreconditioner(const std::string& name) {
   if (name == "none") return Preconditioner::kNone;
   if (name == "jacobi") return Preconditioner::kJacobi;
+  if (name == "block-jacobi") return Preconditioner::kBlockJacobi;
   if (name == "ichol") return Preconditioner::kIncompleteCholesky;
-  throw Error("", "preconditioner", "unknown '" + name + "' (expected none, jacobi or ichol)");
+  throw Error("", "preconditioner",
+              "unknown '" + name + "' (expected none, jacobi, block-jacobi or ichol)");
 }
 
 CholmodFactorization ParseCholmodFactorization(const std::string& name) {
@@ -133,6 +137,26 @@ class ConjugateGradientSolver : public LinearSolver {
         inverse_diagonal_ = inverse_diagonal_.cwiseInverse();
         break;
       }
+      case Preconditioner::kBlockJacobi: {
+        const int n = static_cast<int>(A.rows());
+        ARREG_CHECK_INPUT(n % 3 == 0, "", "linear_solver.preconditioner",
+                          "block-jacobi needs 3 DOFs per vertex, got ", n, " DOFs");
+        block_inverses_.resize(n / 3);
+        std::vector<Eigen::Matrix3d> blocks(n / 3, Eigen::Matrix3d::Zero());
+        for (int col = 0; col < n; ++col)
+          for (SparseMatrixd::InnerIterator it(A, col); it; ++it)
+            if (it.row() / 3 == col / 3) blocks[col / 3](it.row() % 3, col % 3) = it.value();
+        for (int v = 0; v < n / 3; ++v) {
+          Eigen::LLT<Eigen::Matrix3d> llt(blocks[v]);
+          if (llt.info() != Eigen::Success) {
+            summary->status = LinearSolverStatus::kIndefinite;
+            summary->message = "diagonal block not positive definite";
+            return false;
+          }
+          block_inverses_[v] = llt.solve(Eigen::Matrix3d::Identity());
+        }
+        break;
+      }
       case Preconditioner::kIncompleteCholesky: {
         if (!pattern_valid_) ichol_.analyzePattern(A);
         ichol_.factorize(A);
@@ -155,6 +179,12 @@ class ConjugateGradientSolver : public LinearSolver {
       case Preconditioner::kJacobi:
         z->noalias() = inverse_diagonal_.cwiseProduct(r);
         break;
+      case Preconditioner::kBlockJacobi: {
+        z->resize(r.size());
+        for (size_t v = 0; v < block_inverses_.size(); ++v)
+          z->segment<3>(3 * v).noalias() = block_inverses_[v] * r.segment<3>(3 * v);
+        break;
+      }
       case Preconditioner::kIncompleteCholesky:
         *z = ichol_.solve(r);
         break;
@@ -164,6 +194,7 @@ class ConjugateGradientSolver : public LinearSolver {
   LinearSolverOptions options_;
   bool pattern_valid_ = false, values_valid_ = false;
   Eigen::VectorXd inverse_diagonal_, r_, z_, p_, q_;
+  std::vector<Eigen::Matrix3d> block_inverses_;
   Eigen::IncompleteCholesky<double, Eigen::Lower, Eigen::AMDOrdering<int>> ichol_;
 };
 

@@ -11,12 +11,18 @@
 namespace arreg::mechanics {
 
 enum class LinearSolverType { kConjugateGradient, kCholmod };
-enum class Preconditioner { kNone, kJacobi, kIncompleteCholesky };
+enum class Preconditioner {
+  kNone,
+  kJacobi,       // inverse of the diagonal
+  kBlockJacobi,  // inverses of the 3x3 vertex blocks (DOFs vertex-major, 3 per vertex)
+  kIncompleteCholesky,
+};
 enum class CholmodFactorization { kSupernodal, kSimplicial, kAuto };
 
 LinearSolverType ParseLinearSolverType(const std::string& name);  // "cg", "cholmod"
 const char* LinearSolverTypeName(LinearSolverType type);
-Preconditioner ParsePreconditioner(const std::string& name);  // "none", "jacobi", "ichol"
+// "none", "jacobi", "block-jacobi", "ichol"
+Preconditioner ParsePreconditioner(const std::string& name);
 // "supernodal", "simplicial", "auto"
 CholmodFactorization ParseCholmodFactorization(const std::string& name);
 

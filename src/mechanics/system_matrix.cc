@@ -65,6 +65,7 @@ SystemMatrix::SystemMatrix(int num_vertices, const RowMatX4i& tetrahedra)
 
 void SystemMatrix::ApplyDirichlet(const std::vector<char>& fixed_mask) {
   ARREG_ASSERT(static_cast<int>(fixed_mask.size()) == num_vertices_, "");
+  if (std::find(fixed_mask.begin(), fixed_mask.end(), 1) == fixed_mask.end()) return;
   const int n = num_dofs();
   const int* outer = matrix_.outerIndexPtr();
   const int* inner = matrix_.innerIndexPtr();

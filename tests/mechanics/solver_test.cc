@@ -63,7 +63,7 @@ TEST_P(CgVsCholmod, SameStepToOneInAMillion) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Preconditioners, CgVsCholmod,
-                         ::testing::Values(Preconditioner::kJacobi,
+                         ::testing::Values(Preconditioner::kJacobi, Preconditioner::kBlockJacobi,
                                            Preconditioner::kIncompleteCholesky,
                                            Preconditioner::kNone));
 
