@@ -35,7 +35,7 @@ void PrintSummary(const eval::RunEvaluation& r) {
 int RunEval(int argc, char** argv) {
   std::string run_dir, gt_dir, out_dir, baseline_dir;
   eval::EvalOptions o;
-  bool no_colormaps = false;
+  bool no_colormaps = false, quiet = false;
   int seed = static_cast<int>(o.hausdorff.sampling.seed);
   OptionParser parser(
       "arreg eval --run DIR --gt GT --out REPORT [--baseline DIR] [options]",
@@ -59,6 +59,7 @@ int RunEval(int argc, char** argv) {
   parser.AddDouble("colormap-max", &o.color_map_max_mm, "MM",
                    "top of the colour-map scale in mm (0: the symmetric Hausdorff distance)");
   parser.AddFlag("no-colormaps", &no_colormaps, "skip the per-vertex distance colour maps");
+  parser.AddFlag("quiet", &quiet, "no progress on stderr");
   parser.SetEpilog(
       "Writes REPORT/report.json (dice_final, dice_mean, hausdorff_surface, hausdorff_internal,\n"
       "feature_error_mm, frames), REPORT/report.csv (one row per frame and run),\n"
@@ -68,11 +69,19 @@ int RunEval(int argc, char** argv) {
   o.hausdorff.sampling.seed = static_cast<uint64_t>(seed);
   o.color_maps = !no_colormaps;
   o.Check();
+  std::string stage;
+  if (!quiet)
+    o.progress = [&stage](int done, int total) {
+      std::fprintf(stderr, "\rarreg eval: %s frame %d/%d", stage.c_str(), done, total);
+      if (done == total) std::fprintf(stderr, "\n");
+    };
 
+  stage = "run";
   const eval::RunEvaluation run = eval::EvaluateRun(run_dir, gt_dir, o);
   PrintSummary(run);
   std::optional<eval::RunEvaluation> baseline;
   if (!baseline_dir.empty()) {
+    stage = "baseline";
     baseline = eval::EvaluateRun(baseline_dir, gt_dir, o);
     PrintSummary(*baseline);
   }

@@ -6,6 +6,8 @@
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
+#include <utility>
+#include <vector>
 
 #include "ar/eval/color_map.h"
 #include "ar/eval/evaluation.h"
@@ -29,7 +31,12 @@ EvalOptions FastOptions() {
 
 TEST(EvalReport, MetricsOfAHandBuiltRunMatchTheClosedForm) {
   const Folders f = MakeFolders("eval_report_metrics");
-  const RunEvaluation ev = EvaluateRun(f.run.string(), f.gt.string(), FastOptions());
+  EvalOptions options = FastOptions();
+  std::vector<std::pair<int, int>> progress;
+  options.progress = [&](int done, int total) { progress.emplace_back(done, total); };
+  const RunEvaluation ev = EvaluateRun(f.run.string(), f.gt.string(), options);
+  const std::vector<std::pair<int, int>> expected_progress = {{1, 3}, {2, 3}, {3, 3}};
+  EXPECT_EQ(progress, expected_progress);
   ASSERT_EQ(ev.frames.size(), 3u);
   EXPECT_DOUBLE_EQ(*ev.frames[0].dice, 1.0);
   EXPECT_DOUBLE_EQ(*ev.frames[1].dice, 0.75);

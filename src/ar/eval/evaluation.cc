@@ -229,7 +229,10 @@ RunEvaluation EvaluateRun(const std::string& run_dir, const std::string& gt_dir,
 
   int last_gt_surface_frame = -1;
   double dice_sum = 0.0;
-  for (int f : surface_frames) {
+  for (size_t i = 0; i < surface_frames.size(); ++i) {
+    if (options.progress && i > 0)
+      options.progress(static_cast<int>(i), static_cast<int>(surface_frames.size()));
+    const int f = surface_frames[i];
     FrameEvaluation& fe = ev.frames[f];
     const SurfaceMesh model = ReadMesh(FramePath(run_dir, "surface", f, ".obj"));
     const cv::Mat truth = ReadMask(FramePath(gt_dir, "masks", f, ".png"), info.camera);
@@ -247,6 +250,9 @@ RunEvaluation EvaluateRun(const std::string& run_dir, const std::string& gt_dir,
       fe.internal = Figures(
           ComputeHausdorff(ReadMesh(run_internal), ReadMesh(gt_internal), options.hausdorff));
   }
+  if (options.progress)
+    options.progress(static_cast<int>(surface_frames.size()),
+                     static_cast<int>(surface_frames.size()));
   ev.dice_mean = dice_sum / surface_frames.size();
   ev.surface = Aggregate(ev.frames, &FrameEvaluation::surface);
   ev.internal = Aggregate(ev.frames, &FrameEvaluation::internal);

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -21,6 +22,8 @@ struct EvalOptions {
   // distance of the structure at the colour-map frame, so both directions share a scale.
   double color_map_max_mm = 0.0;
   int color_map_supersampling = 2;  // anti-aliasing of the colour-map images, 1..8; default 2
+  // Called after each evaluated frame with (done, total) frames; may be empty (default).
+  std::function<void(int done, int total)> progress;
   void Check() const;
 };
 
