@@ -53,21 +53,36 @@ void OptionParser::AddFlag(const std::string& name, bool* target, const std::str
 
 void OptionParser::AddString(const std::string& name, std::string* target,
                              const std::string& metavar, const std::string& help, bool required) {
-  Option o{name, metavar, help, target->empty() ? "" : *target, false, required,
+  Option o{name,
+           metavar,
+           help,
+           target->empty() ? "" : *target,
+           false,
+           required,
            [target](const std::string& v) { *target = v; }};
   options_.push_back(std::move(o));
 }
 
 void OptionParser::AddInt(const std::string& name, int* target, const std::string& metavar,
                           const std::string& help, bool required) {
-  Option o{name, metavar, help, std::to_string(*target), false, required,
+  Option o{name,
+           metavar,
+           help,
+           std::to_string(*target),
+           false,
+           required,
            [target, name](const std::string& v) { *target = ParseIntValue(name, v); }};
   options_.push_back(std::move(o));
 }
 
 void OptionParser::AddDouble(const std::string& name, double* target, const std::string& metavar,
                              const std::string& help, bool required) {
-  Option o{name, metavar, help, FormatDouble(*target), false, required,
+  Option o{name,
+           metavar,
+           help,
+           FormatDouble(*target),
+           false,
+           required,
            [target, name](const std::string& v) { *target = ParseDoubleValue(name, v); }};
   options_.push_back(std::move(o));
 }
@@ -134,8 +149,10 @@ std::string OptionParser::Help() const {
     os << "  --" << o.name;
     if (!o.is_flag) os << " " << o.metavar;
     os << "\n      " << o.help;
-    if (o.required) os << " (required)";
-    else if (!o.is_flag && !o.default_text.empty()) os << " (default: " << o.default_text << ")";
+    if (o.required)
+      os << " (required)";
+    else if (!o.is_flag && !o.default_text.empty())
+      os << " (default: " << o.default_text << ")";
     os << "\n";
   }
   os << "  --help\n      show this help and exit\n";

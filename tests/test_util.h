@@ -2,8 +2,8 @@
 // skip cleanly when it is absent) and scratch directories.
 #pragma once
 
-#include <filesystem>
 #include <cstdlib>
+#include <filesystem>
 #include <string>
 
 namespace arreg::testing {
@@ -13,8 +13,10 @@ namespace arreg::testing {
 inline std::string SharedDataPath(const std::string& relative) {
   namespace fs = std::filesystem;
   std::string root;
-  if (const char* env = std::getenv("ARREG_SHARED_DATA")) root = env;
-  else root = std::string(ARREG_SOURCE_DIR) + "/../shared/data";
+  if (const char* env = std::getenv("ARREG_SHARED_DATA"))
+    root = env;
+  else
+    root = std::string(ARREG_SOURCE_DIR) + "/../shared/data";
   const fs::path p = fs::path(root) / relative;
   std::error_code ec;
   return fs::exists(p, ec) ? fs::weakly_canonical(p).string() : std::string();
@@ -32,6 +34,6 @@ inline std::string ScratchDir(const std::string& name) {
 }  // namespace arreg::testing
 
 // Skips the current test with a message when shared data is missing.
-#define ARREG_REQUIRE_SHARED(var, relative)                                           \
-  const std::string var = ::arreg::testing::SharedDataPath(relative);                 \
+#define ARREG_REQUIRE_SHARED(var, relative)                           \
+  const std::string var = ::arreg::testing::SharedDataPath(relative); \
   if (var.empty()) GTEST_SKIP() << "../shared/data/" << (relative) << " not present; skipped"

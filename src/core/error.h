@@ -40,17 +40,16 @@ std::string Concat(Args&&... args) {
 }  // namespace arreg
 
 // Throws arreg::Error when `cond` is false. The message parts are streamed.
-#define ARREG_CHECK_INPUT(cond, file, where, ...)                                   \
-  do {                                                                              \
+#define ARREG_CHECK_INPUT(cond, file, where, ...)                                               \
+  do {                                                                                          \
     if (!(cond)) throw ::arreg::Error((file), (where), ::arreg::internal::Concat(__VA_ARGS__)); \
   } while (0)
 
 // For broken internal invariants (programming errors, not bad input): throws
 // std::logic_error naming the source location, never aborts.
-#define ARREG_ASSERT(cond, ...)                                                     \
-  do {                                                                              \
-    if (!(cond))                                                                    \
-      throw std::logic_error(::arreg::internal::Concat(__FILE__, ":", __LINE__,     \
-                                                       ": internal check failed: " #cond " ", \
-                                                       ##__VA_ARGS__));             \
+#define ARREG_ASSERT(cond, ...)                                                            \
+  do {                                                                                     \
+    if (!(cond))                                                                           \
+      throw std::logic_error(::arreg::internal::Concat(                                    \
+          __FILE__, ":", __LINE__, ": internal check failed: " #cond " ", ##__VA_ARGS__)); \
   } while (0)

@@ -37,7 +37,8 @@ void WriteFileAtomic(const std::string& path, const std::function<void(std::ostr
   try {
     {
       std::ofstream out(tmp, binary ? std::ios::binary | std::ios::out : std::ios::out);
-      if (!out) throw Error(path, "", std::string("cannot open for writing: ") + std::strerror(errno));
+      if (!out)
+        throw Error(path, "", std::string("cannot open for writing: ") + std::strerror(errno));
       write(out);
       out.flush();
       if (!out) throw Error(path, "", "write failed (disk full?)");

@@ -16,6 +16,9 @@ void LogMessage(LogLevel level, const std::string& message);
 
 }  // namespace arreg
 
-#define ARREG_LOG_DEBUG(...) ::arreg::LogMessage(::arreg::LogLevel::kDebug, ::arreg::internal::Concat(__VA_ARGS__))
-#define ARREG_LOG_INFO(...) ::arreg::LogMessage(::arreg::LogLevel::kInfo, ::arreg::internal::Concat(__VA_ARGS__))
-#define ARREG_LOG_WARNING(...) ::arreg::LogMessage(::arreg::LogLevel::kWarning, ::arreg::internal::Concat(__VA_ARGS__))
+#define ARREG_LOG_DEBUG(...) \
+  ::arreg::LogMessage(::arreg::LogLevel::kDebug, ::arreg::internal::Concat(__VA_ARGS__))
+#define ARREG_LOG_INFO(...) \
+  ::arreg::LogMessage(::arreg::LogLevel::kInfo, ::arreg::internal::Concat(__VA_ARGS__))
+#define ARREG_LOG_WARNING(...) \
+  ::arreg::LogMessage(::arreg::LogLevel::kWarning, ::arreg::internal::Concat(__VA_ARGS__))
