@@ -102,25 +102,66 @@ void SurfDetector::Haar(int r, int c, int side, float* dx, float* dy) const {
   *dy = static_cast<float>(ClippedBox(r, c0, half, side) - ClippedBox(r0, c0, half, side));
 }
 
+namespace {
+
+// The three second-derivative box filters of one filter size (Bay et al. 2008,
+// fig. 1): a (2l-1) x 3l box minus three times its middle third, and four
+// l x l quadrants for Dxy. Offsets are relative to the integral-image entry of
+// the centre pixel.
+struct HessianBoxes {
+  Box dxx_outer, dxx_middle, dyy_outer, dyy_middle, dxy[4];
+  float inv_area;
+
+  HessianBoxes(int stride, int L) {
+    const int lobe = L / 3, border = (L - 1) / 2;
+    dxx_outer = MakeBox(stride, -(lobe - 1), -border, 2 * lobe - 1, L, 1);
+    dxx_middle = MakeBox(stride, -(lobe - 1), -(lobe - 1) / 2, 2 * lobe - 1, lobe, -3);
+    dyy_outer = MakeBox(stride, -border, -(lobe - 1), L, 2 * lobe - 1, 1);
+    dyy_middle = MakeBox(stride, -(lobe - 1) / 2, -(lobe - 1), lobe, 2 * lobe - 1, -3);
+    dxy[0] = MakeBox(stride, -lobe, -lobe, lobe, lobe, 1);
+    dxy[1] = MakeBox(stride, -lobe, 1, lobe, lobe, -1);
+    dxy[2] = MakeBox(stride, 1, -lobe, lobe, lobe, -1);
+    dxy[3] = MakeBox(stride, 1, 1, lobe, lobe, 1);
+    inv_area = 1.f / static_cast<float>(L * L);
+  }
+  float Dxx(const uint32_t* p) const {
+    return static_cast<float>(BoxSum(p, dxx_outer) - 3 * BoxSum(p, dxx_middle)) * inv_area;
+  }
+  float Dyy(const uint32_t* p) const {
+    return static_cast<float>(BoxSum(p, dyy_outer) - 3 * BoxSum(p, dyy_middle)) * inv_area;
+  }
+  float Dxy(const uint32_t* p) const {
+    return static_cast<float>(BoxSum(p, dxy[0]) - BoxSum(p, dxy[1]) - BoxSum(p, dxy[2]) +
+                              BoxSum(p, dxy[3])) *
+           inv_area;
+  }
+};
+
+// One row of determinant responses at samples x_begin..x_end-1 (pixel x * kStep).
+// kStep is a template argument so that the unit-step first octave, which holds
+// most of the work, runs over contiguous memory and vectorises.
+template <int kStep>
+void HessianRow(const HessianBoxes& h, const uint32_t* row, int step, int x_begin, int x_end,
+                float* out) {
+  const int s = kStep > 0 ? kStep : step;
+  for (int x = x_begin; x < x_end; ++x) {
+    const uint32_t* p = row + x * s;
+    const float Dxx = h.Dxx(p), Dyy = h.Dyy(p), Dxy = h.Dxy(p);
+    // 0.9: relative weight that balances the box approximations (paper eq. 3).
+    out[x] = Dxx * Dyy - 0.81f * Dxy * Dxy;
+  }
+}
+
+}  // namespace
+
 void SurfDetector::BuildLayer(Layer* layer) const {
   const int L = layer->filter_size, step = layer->step;
-  const int lobe = L / 3, border = (L - 1) / 2;
+  const int border = (L - 1) / 2;
   const int stride = cols_ + 1;
   layer->rows = (rows_ + step - 1) / step;
   layer->cols = (cols_ + step - 1) / step;
   layer->response.assign(static_cast<size_t>(layer->rows) * layer->cols, 0.f);
-  layer->sign.assign(layer->response.size(), 0);
-  // Second-derivative approximations (Bay et al. 2008, fig. 1): a (2l-1) x 3l
-  // box minus three times its middle third, and four l x l quadrants for Dxy.
-  // Offsets are relative to the integral-image entry of the centre pixel.
-  const Box dxx_outer = MakeBox(stride, -(lobe - 1), -border, 2 * lobe - 1, L, 1);
-  const Box dxx_middle = MakeBox(stride, -(lobe - 1), -(lobe - 1) / 2, 2 * lobe - 1, lobe, -3);
-  const Box dyy_outer = MakeBox(stride, -border, -(lobe - 1), L, 2 * lobe - 1, 1);
-  const Box dyy_middle = MakeBox(stride, -(lobe - 1) / 2, -(lobe - 1), lobe, 2 * lobe - 1, -3);
-  const Box dxy[4] = {
-      MakeBox(stride, -lobe, -lobe, lobe, lobe, 1), MakeBox(stride, -lobe, 1, lobe, lobe, -1),
-      MakeBox(stride, 1, -lobe, lobe, lobe, -1), MakeBox(stride, 1, 1, lobe, lobe, 1)};
-  const float inv_area = 1.f / static_cast<float>(L * L);
+  const HessianBoxes boxes(stride, L);
   // Rows/columns (in response samples) where the whole filter fits.
   const int y_begin = (border + step - 1) / step, x_begin = (border + step - 1) / step;
   const int y_end = std::min(layer->rows, (rows_ - 1 - border) / step + 1);
@@ -128,22 +169,20 @@ void SurfDetector::BuildLayer(Layer* layer) const {
   const uint32_t* I = integral_.data();
   for (int y = y_begin; y < y_end; ++y) {
     float* out = &layer->response[static_cast<size_t>(y) * layer->cols];
-    int8_t* sign = &layer->sign[static_cast<size_t>(y) * layer->cols];
-    const int r = y * step;
-    for (int x = x_begin; x < x_end; ++x) {
-      const uint32_t* p = I + r * stride + x * step;
-      const float Dxx =
-          static_cast<float>(BoxSum(p, dxx_outer) - 3 * BoxSum(p, dxx_middle)) * inv_area;
-      const float Dyy =
-          static_cast<float>(BoxSum(p, dyy_outer) - 3 * BoxSum(p, dyy_middle)) * inv_area;
-      const float Dxy = static_cast<float>(BoxSum(p, dxy[0]) - BoxSum(p, dxy[1]) -
-                                           BoxSum(p, dxy[2]) + BoxSum(p, dxy[3])) *
-                        inv_area;
-      // 0.9: relative weight that balances the box approximations (paper eq. 3).
-      out[x] = Dxx * Dyy - 0.81f * Dxy * Dxy;
-      sign[x] = Dxx + Dyy >= 0 ? 1 : -1;
-    }
+    const uint32_t* row = I + static_cast<size_t>(y) * step * stride;
+    if (step == 1)
+      HessianRow<1>(boxes, row, step, x_begin, x_end, out);
+    else
+      HessianRow<0>(boxes, row, step, x_begin, x_end, out);
   }
+}
+
+int8_t SurfDetector::LaplacianSign(const Layer& layer, int y, int x) const {
+  const int stride = cols_ + 1;
+  const HessianBoxes boxes(stride, layer.filter_size);
+  const uint32_t* p = integral_.data() + static_cast<size_t>(y) * layer.step * stride +
+                      static_cast<size_t>(x) * layer.step;
+  return boxes.Dxx(p) + boxes.Dyy(p) >= 0 ? 1 : -1;
 }
 
 void SurfDetector::Detect(const cv::Mat& mask, std::vector<SurfKeypoint>* keypoints) {
@@ -216,7 +255,7 @@ void SurfDetector::Detect(const cv::Mat& mask, std::vector<SurfKeypoint>* keypoi
                              offset[2] * (layers[i + 1].filter_size - layers[i].filter_size);
           kp.scale_px = 1.2f / 9.f * size;
           kp.response = v + 0.5f * (gx * offset[0] + gy * offset[1] + gs * offset[2]);
-          kp.laplacian_sign = layers[i].sign[k];
+          kp.laplacian_sign = LaplacianSign(layers[i], y, x);
           kp.octave = o;
           keypoints->push_back(kp);
         }

@@ -67,9 +67,11 @@ class SurfDetector {
     int filter_size = 0, step = 0;
     int rows = 0, cols = 0;
     std::vector<float> response;  // (rows x cols) det of Hessian, 0 where the filter does not fit
-    std::vector<int8_t> sign;     // (rows x cols) sign of the Laplacian
   };
   void BuildLayer(Layer* layer) const;
+  // Sign of Dxx + Dyy at sample (y, x) of `layer`; computed only for the
+  // keypoints, which keeps the response loop free of a second output.
+  int8_t LaplacianSign(const Layer& layer, int y, int x) const;
   // Integral-image box sum over rows [r0, r0+h) x cols [c0, c0+w), clipped to the image.
   int ClippedBox(int r0, int c0, int h, int w) const;
   // Haar wavelet responses (x: right minus left, y: bottom minus top) of side
