@@ -75,7 +75,7 @@ LabeledTetMesh MeshKidney(const KidneyShape& shape, const KidneyMeshOptions& opt
                     p::cell_size = options.cell_size_mm);
   CGAL::get_default_random() = CGAL::Random(20261121);
   const C3t3 c3t3 = CGAL::make_mesh_3<C3t3>(domain, criteria, CGAL::parameters::no_perturb(),
-                                            CGAL::parameters::exude());
+                                            CGAL::parameters::no_exude());
   std::map<Tr::Vertex_handle, int> index;
   std::vector<Eigen::Vector3d> vertices;
   std::vector<Eigen::Vector4i> tets;
