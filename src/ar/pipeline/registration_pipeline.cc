@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <opencv2/imgproc.hpp>
 #include <optional>
 #include <unordered_map>
@@ -268,6 +269,9 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     VideoWriterOptions wo;
     wo.crf = o.output.crf;
     wo.encode_threads = o.output.encode_threads;
+    const std::string parent =
+        std::filesystem::path(run_options.overlay_video_path).parent_path().string();
+    if (!parent.empty()) CreateDirectories(parent);
     writer.Open(run_options.overlay_video_path, camera.width, camera.height, fps, wo);
   }
 

@@ -1,0 +1,250 @@
+// Tests of the registration pipeline on small rendered scenes: a static video keeps the model
+// in place, a rigid shift is followed, the records are complete and a stop leaves them complete.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "ar/pipeline/overlay.h"
+#include "ar/pipeline/record_writer.h"
+#include "ar/pipeline/registration_pipeline.h"
+#include "ar/render/rasterizer.h"
+#include "core/camera.h"
+#include "core/error.h"
+#include "core/json_reader.h"
+#include "core/mesh_generators.h"
+#include "core/mesh_io.h"
+#include "core/mesh_ops.h"
+#include "core/scene.h"
+#include "test_util.h"
+#include "tracking/video_io.h"
+
+namespace arreg::pipeline {
+namespace {
+
+// Smooth value noise on a 2.5 mm lattice: blob texture that SURF and LK lock onto.
+float Noise(const Eigen::Vector3d& p) {
+  auto hash = [](int x, int y) {
+    uint32_t h = static_cast<uint32_t>(x) * 73856093u ^ static_cast<uint32_t>(y) * 19349663u;
+    h = (h ^ (h >> 13)) * 1274126177u;
+    return ((h ^ (h >> 16)) & 0xffff) / 65535.0f;
+  };
+  const double s = 2.5, x = p.x() / s, y = p.y() / s;
+  const int ix = static_cast<int>(std::floor(x)), iy = static_cast<int>(std::floor(y));
+  const float fx = static_cast<float>(x - ix), fy = static_cast<float>(y - iy);
+  const float sx = fx * fx * (3 - 2 * fx), sy = fy * fy * (3 - 2 * fy);
+  const float a = hash(ix, iy), b = hash(ix + 1, iy), c = hash(ix, iy + 1),
+              d = hash(ix + 1, iy + 1);
+  return (a * (1 - sx) + b * sx) * (1 - sy) + (c * (1 - sx) + d * sx) * sy;
+}
+
+// A 60 x 60 x 10 mm box seen from 200 mm, filmed while it shifts by shift_mm(frame) in x.
+struct BoxScene {
+  std::string dir;
+  Scene scene;
+};
+
+BoxScene MakeBoxScene(const std::string& name, int frames,
+                      const std::function<double(int)>& shift_mm) {
+  BoxScene b;
+  b.dir = testing::ScratchDir(name);
+  TetMesh mesh = MakeBoxTetMesh(Eigen::Vector3d(60, 60, 10), Eigen::Vector3i(6, 6, 1));
+  for (int i = 0; i < mesh.vertices.rows(); ++i)
+    mesh.vertices.row(i) -= Eigen::RowVector3d(30, 30, 10);  // top face at z = 0
+  WriteTetMesh(b.dir + "/model.vtk", mesh);
+
+  PinholeCamera camera;
+  camera.width = 320;
+  camera.height = 256;
+  camera.fx = camera.fy = 300;
+  camera.cx = 159.5;
+  camera.cy = 127.5;
+  camera.LookAt(Eigen::Vector3d(0, 0, 200), Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 1, 0));
+
+  const render::RasterCamera raster = ToRasterCamera(camera);
+  SurfaceMesh surface = ExtractBoundary(mesh);
+  VideoWriter writer;
+  VideoWriterOptions wo;
+  wo.crf = 0;
+  writer.Open(b.dir + "/video.mp4", camera.width, camera.height, 25.0, wo);
+  for (int f = 0; f < frames; ++f) {
+    RowMatX3d moved = surface.vertices;
+    moved.col(0).array() += shift_mm(f);
+    const RowMatX3d& rest = surface.vertices;
+    const RowMatX3i& faces = surface.faces;
+    render::RenderTarget target(raster, 2);
+    target.Clear(Eigen::Vector3f(0.1f, 0.05f, 0.05f));
+    target.Draw(moved, faces, RowMatX3d(), [&](const render::Fragment& fr) {
+      Eigen::Vector3d p = Eigen::Vector3d::Zero();
+      for (int k = 0; k < 3; ++k) p += fr.barycentric[k] * rest.row(faces(fr.face, k)).transpose();
+      const float g = 0.2f + 0.7f * Noise(p);
+      return Eigen::Vector3f(g, 0.8f * g, 0.7f * g);
+    });
+    writer.Write(target.ResolveBgr());
+  }
+  writer.Close();
+
+  nlohmann::json j;
+  j["model"] = "model.vtk";
+  j["camera"] = CameraToJson(camera);
+  j["video"] = "video.mp4";
+  j["material"] = {{"youngs_modulus_pa", 5000.0}};
+  std::ofstream(b.dir + "/scene.json") << j.dump(2);
+  b.scene = ReadScene(b.dir + "/scene.json");
+  return b;
+}
+
+class StopAfter : public FrameObserver {
+ public:
+  StopAfter(int frame, std::atomic<bool>* flag) : frame_(frame), flag_(flag) {}
+  void OnFrame(const FrameState& f) override {
+    if (f.frame == frame_) flag_->store(true);
+    last_mean_mm = f.stats.spring_length_mean_mm;
+    max_mean_mm = std::max(max_mean_mm, f.stats.spring_length_mean_mm);
+    alive = f.stats.features_alive;
+    if (f.is_last) {
+      centroid = f.state->positions().colwise().mean().transpose();
+      rest_centroid = f.state->rest_positions().colwise().mean().transpose();
+    }
+  }
+  int frame_;
+  std::atomic<bool>* flag_;
+  double last_mean_mm = 0, max_mean_mm = 0;
+  int alive = 0;
+  Eigen::Vector3d centroid, rest_centroid;
+};
+
+std::vector<nlohmann::json> ReadJsonl(const std::string& path) {
+  std::vector<nlohmann::json> lines;
+  std::ifstream in(path);
+  std::string line;
+  while (std::getline(in, line)) lines.push_back(ParseJsonText(line, path));
+  return lines;
+}
+
+TEST(Pipeline, StaticVideoKeepsModelInPlaceAndRecordsAreComplete) {
+  const BoxScene b = MakeBoxScene("pipeline_static", 8, [](int) { return 0.0; });
+  PipelineOptions o = ReadPipelineOptions(b.scene);
+  std::atomic<bool> never{false};
+  StopAfter probe(-1, &never);
+  const std::string out = b.dir + "/run";
+  RecordWriter records(out, false);
+  RegistrationPipeline pipe(b.scene, o);
+  pipe.AddObserver(&probe);
+  pipe.AddObserver(&records);
+  RunOptions run;
+  run.overlay_video_path = out + "/overlay.mp4";
+  run.save_every = 3;
+  const RunSummary s = pipe.Run(run);
+  EXPECT_EQ(s.frames, 8);
+  EXPECT_FALSE(s.interrupted);
+  EXPECT_EQ(s.cut_events, 0);  // nothing moves: no cut may be detected
+  EXPECT_GT(probe.alive, 30);
+  // Tracking noise on a lossless still video is well below a pixel (0.67 mm at 200 mm).
+  EXPECT_LT(probe.max_mean_mm, 0.05);
+  EXPECT_LT((probe.centroid - probe.rest_centroid).norm(), 0.05);
+
+  const auto lines = ReadJsonl(out + "/frames.jsonl");
+  ASSERT_EQ(lines.size(), 8u);
+  for (size_t i = 0; i < lines.size(); ++i) {
+    EXPECT_EQ(lines[i].at("frame").get<int>(), static_cast<int>(i));
+    for (const char* key :
+         {"features_alive", "outliers", "spring_length_mean_mm", "spring_length_max_mm",
+          "feature_error_mean_mm", "feature_error_max_mm", "cut_events", "ms"})
+      EXPECT_TRUE(lines[i].contains(key)) << key;
+    EXPECT_LE(lines[i].at("spring_length_mean_mm").get<double>(),
+              lines[i].at("spring_length_max_mm").get<double>());
+  }
+  // Meshes at frames 0, 3, 6 and the last one (7).
+  namespace fs = std::filesystem;
+  for (int f : {0, 3, 6, 7}) {
+    char name[16];
+    std::snprintf(name, sizeof(name), "%06d", f);
+    EXPECT_TRUE(fs::exists(out + "/surface/" + name + ".obj")) << f;
+    EXPECT_TRUE(fs::exists(out + "/mesh/" + name + ".vtk")) << f;
+  }
+  EXPECT_FALSE(fs::exists(out + "/surface/000001.obj"));
+  const nlohmann::json run_json = ParseJsonFile(out + "/run.json");
+  EXPECT_EQ(run_json.at("frames").get<int>(), 8);
+  EXPECT_FALSE(run_json.at("interrupted").get<bool>());
+  EXPECT_TRUE(run_json.at("topology").get<bool>());
+  VideoReader overlay;
+  overlay.Open(out + "/overlay.mp4");
+  EXPECT_EQ(overlay.frame_count(), 8);
+  // The saved surface is the model's boundary at rest: a closed box of 60 x 60 x 10 mm.
+  const SurfaceMesh last = ReadSurfaceMesh(out + "/surface/000007.obj");
+  EXPECT_NEAR(last.vertices.col(0).maxCoeff() - last.vertices.col(0).minCoeff(), 60.0, 0.1);
+}
+
+TEST(Pipeline, FollowsARigidShift) {
+  // 6 mm to the right over 12 frames, then held.
+  const BoxScene b =
+      MakeBoxScene("pipeline_shift", 16, [](int f) { return 0.5 * std::min(f, 12); });
+  PipelineOptions o = ReadPipelineOptions(b.scene);
+  o.render.enabled = false;
+  std::atomic<bool> never{false};
+  StopAfter probe(-1, &never);
+  RegistrationPipeline pipe(b.scene, o);
+  pipe.AddObserver(&probe);
+  const RunSummary s = pipe.Run();
+  EXPECT_EQ(s.frames, 16);
+  const Eigen::Vector3d moved = probe.centroid - probe.rest_centroid;
+  EXPECT_NEAR(moved.x(), 6.0, 0.3);
+  EXPECT_NEAR(moved.y(), 0.0, 0.3);
+  EXPECT_NEAR(moved.z(), 0.0, 0.3);
+  EXPECT_LT(probe.last_mean_mm, 0.3);
+}
+
+TEST(Pipeline, StopFlagEndsTheRunWithCompleteOutputs) {
+  const BoxScene b = MakeBoxScene("pipeline_stop", 10, [](int f) { return 0.2 * f; });
+  PipelineOptions o = ReadPipelineOptions(b.scene);
+  std::atomic<bool> stop{false};
+  StopAfter probe(3, &stop);
+  const std::string out = b.dir + "/run";
+  RecordWriter records(out, false);
+  RegistrationPipeline pipe(b.scene, o);
+  pipe.AddObserver(&probe);
+  pipe.AddObserver(&records);
+  RunOptions run;
+  run.overlay_video_path = out + "/overlay.mp4";
+  run.stop = &stop;
+  run.save_every = 100;
+  const RunSummary s = pipe.Run(run);
+  EXPECT_TRUE(s.interrupted);
+  // Raised while frame 3 was being recorded, the flag is seen when frame 4 is complete (as
+  // a Ctrl-C arriving then): frames 0..4 are done.
+  EXPECT_EQ(s.frames, 5);
+  EXPECT_EQ(ReadJsonl(out + "/frames.jsonl").size(), 5u);
+  const nlohmann::json run_json = ParseJsonFile(out + "/run.json");
+  EXPECT_TRUE(run_json.at("interrupted").get<bool>());
+  EXPECT_EQ(run_json.at("frames").get<int>(), 5);
+  // The last processed frame is a record frame; the video holds exactly the frames done.
+  EXPECT_TRUE(std::filesystem::exists(out + "/surface/000004.obj"));
+  VideoReader overlay;
+  overlay.Open(out + "/overlay.mp4");
+  EXPECT_EQ(overlay.frame_count(), 5);
+  // No temporary files are left behind.
+  for (const auto& e : std::filesystem::directory_iterator(out))
+    EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+}
+
+TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
+  Scene scene;
+  scene.path = "scene.json";
+  scene.mechanics = {{"sprng_stiffness", 3.0}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  scene.mechanics = {{"spring_stiffness_n_per_m", -1.0}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  scene.mechanics = nlohmann::json::object();
+  scene.render = {{"organ_opacity", 0.5}, {"wireframe", true}};
+  const PipelineOptions o = ReadPipelineOptions(scene);
+  EXPECT_DOUBLE_EQ(o.render.organ_opacity, 0.5);
+  EXPECT_TRUE(o.render.wireframe);
+  EXPECT_EQ(o.tracking.max_features, 500);
+}
+
+}  // namespace
+}  // namespace arreg::pipeline
