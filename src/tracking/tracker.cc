@@ -198,6 +198,7 @@ std::vector<bool> SpatioTemporalOutliers(const std::vector<cv::Point2f>& positio
 namespace {
 SurfOptions DetectorOptions(SurfOptions surf) {
   surf.max_keypoints = 0;  // the tracker chooses among all points (distance, highlights)
+  surf.upright = true;     // orientations are computed for the chosen points only
   return surf;
 }
 }  // namespace
@@ -309,6 +310,7 @@ int FeatureTracker::Detect(const cv::Mat& roi_mask) {
     occupy(p);
     accepted.push_back(kp);
   }
+  if (!options_.surf.upright) surf_.ComputeOrientations(&accepted);
   cv::Mat descriptors;
   surf_.Describe(accepted, &descriptors);
   for (size_t i = 0; i < accepted.size(); ++i) {

@@ -262,6 +262,7 @@ struct VideoReader::Impl {
     r = avcodec_parameters_to_context(decoder, stream->codecpar);
     ARREG_CHECK_INPUT(r >= 0, file, "", "bad codec parameters: ", AvErrorString(r));
     decoder->thread_count = options.decode_threads;
+    if (options.skip_loop_filter) decoder->skip_loop_filter = AVDISCARD_ALL;
     r = avcodec_open2(decoder, codec, nullptr);
     ARREG_CHECK_INPUT(r >= 0, file, "", "cannot open decoder '", codec->name,
                       "': ", AvErrorString(r));

@@ -12,6 +12,10 @@ namespace arreg {
 struct VideoReaderOptions {
   // Decoder threads; 1 (default) keeps timings single-threaded, 0 lets FFmpeg choose.
   int decode_threads = 1;
+  // Skip H.264/HEVC's in-loop deblocking filter: faster decoding, but frames
+  // differ from the encoder's and the error builds up until the next key frame.
+  // Default false (exact frames).
+  bool skip_loop_filter = false;
   // Frame rate reported for image-folder sequences, in frames per second (default 25).
   double image_sequence_fps = 25.0;
 

@@ -2,12 +2,14 @@
 // (640x512, 63 frames, 30 fps; skipped when absent).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <random>
 
 #include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
 
 #include "core/error.h"
 #include "test_util.h"
@@ -35,12 +37,15 @@ TEST(RealClip, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
   ASSERT_EQ(reader.height(), 512);
   cv::Mat frame;
   ASSERT_TRUE(reader.Read(&frame));
+  std::vector<cv::Mat> grey(1);
+  cv::cvtColor(frame, grey[0], cv::COLOR_BGR2GRAY);
   FeatureTracker tracker;
   const TrackFrameSummary first = tracker.Initialize(frame);
   EXPECT_GE(first.num_active, 200);
   int frames = 1;
   while (reader.Read(&frame)) {
     tracker.Track(frame);
+    cv::cvtColor(frame, grey.emplace_back(), cv::COLOR_BGR2GRAY);
     ++frames;
   }
   EXPECT_EQ(frames, 63);
@@ -63,10 +68,64 @@ TEST(RealClip, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
               first.num_active, still_tracked, 100.0 * still_tracked / first.num_active, on_grasper,
               grasper_dropped);
   EXPECT_GE(on_grasper, 10) << "the grasper is textured; SURF finds points on it";
-  // The issue asks for >= 50 % survivors; on this clip the upper tissue is
-  // stretched and then covered by the grasper (frames 20-40) and the
-  // forward-backward check drops most points there. What holds is guarded:
+  // The issue asks for >= 50 % survivors. NOT MET (9 %, see docs/tracking.md,
+  // "Real clip"): by a Farneback flow chain, 114 of the 276 tissue features end
+  // under the grasper at frame 62 and 76 more are on it, so at most 46 % could
+  // survive correctly; of the 162 that stay visible, 33 survive. Guarded here is
+  // what holds, so that a regression shows:
   EXPECT_GE(still_tracked, 0.05 * first.num_active);
+
+  // The survivors have not drifted: followed back from the last frame to frame 0
+  // (LK frame by frame, independent of the tracker's own chain) they return to
+  // where they were detected.
+  std::vector<cv::Point2f> from_end, at_start;
+  for (int id = 0; id < store.num_features(); ++id)
+    if (store.first_frame(id) == 0 && store.last_status(id) == TrackStatus::kTracked) {
+      from_end.push_back(store.history(id).back().position_px);
+      at_start.push_back(store.history(id).front().position_px);
+    }
+  ASSERT_FALSE(from_end.empty());
+  std::vector<uint8_t> ok(from_end.size(), 1);
+  for (int f = frames - 1; f > 0; --f) {
+    std::vector<cv::Point2f> next;
+    std::vector<uint8_t> status;
+    std::vector<float> error;
+    cv::calcOpticalFlowPyrLK(grey[f], grey[f - 1], from_end, next, status, error, cv::Size(21, 21),
+                             3);
+    for (size_t i = 0; i < ok.size(); ++i) ok[i] &= status[i];
+    from_end = next;
+  }
+  std::vector<double> round_trip_px;
+  for (size_t i = 0; i < ok.size(); ++i)
+    if (ok[i]) round_trip_px.push_back(cv::norm(from_end[i] - at_start[i]));
+  ASSERT_GE(round_trip_px.size(), 0.9 * ok.size());
+  std::sort(round_trip_px.begin(), round_trip_px.end());
+  const double median = round_trip_px[round_trip_px.size() / 2];
+  const double p90 = round_trip_px[round_trip_px.size() * 9 / 10];
+  std::printf("survivors' round trip: median %.2f px, 90th percentile %.2f px\n", median, p90);
+  EXPECT_LT(median, 2.0);
+  EXPECT_LT(p90, 6.0);
+}
+
+TEST(RealClip, SkippingTheLoopFilterChangesTheFramesByLessThanOneGreyLevel) {
+  ARREG_REQUIRE_SHARED(path, kClip);
+  VideoReader exact, fast;
+  exact.Open(path);
+  VideoReaderOptions options;
+  options.skip_loop_filter = true;
+  fast.Open(path, options);
+  cv::Mat a, b, diff;
+  int frames = 0;
+  double worst = 0;
+  while (exact.ReadGray(&a)) {
+    ASSERT_TRUE(fast.ReadGray(&b)) << "frame " << frames;
+    cv::absdiff(a, b, diff);
+    worst = std::max(worst, cv::mean(diff)[0]);
+    ++frames;
+  }
+  EXPECT_FALSE(fast.ReadGray(&b));
+  EXPECT_EQ(frames, 63);
+  EXPECT_LT(worst, 1.0) << "mean absolute difference of the worst frame, grey levels";
 }
 
 TEST(RealClip, TruncatedOrDamagedCopiesGiveClearErrorsNeverCrashes) {
