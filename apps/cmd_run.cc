@@ -4,9 +4,11 @@
 #include <atomic>
 #include <chrono>
 #include <csignal>
+#include <optional>
 #include <cstdio>
 #include <string>
 
+#include "ar/debug/recorder.h"
 #include "ar/pipeline/record_writer.h"
 #include "ar/pipeline/registration_pipeline.h"
 #include "commands.h"
@@ -56,6 +58,7 @@ int RunRun(int argc, char** argv) {
   std::string scene_path, out_dir, lifting, lift_update;
   bool no_topology = false, no_video = false, png = false, quiet = false, wireframe = false;
   bool show_features = false, show_targets = false, show_springs = false, no_render = false;
+  bool record_debug = false;
   int frames = -1, save_every = 0, supersampling = 0, substeps = 0, crf = -1;
   double stiffness = 0, opacity = -1;
   OptionParser parser(
@@ -86,6 +89,8 @@ int RunRun(int argc, char** argv) {
   parser.AddString("lift-update", &lift_update, "intercept|raycast",
                    "surface target update (default intercept, thesis eq. 7.1)");
   parser.AddFlag("quiet", &quiet, "no progress bar");
+  parser.AddFlag("debug", &record_debug,
+                 "record per-frame debug state in DIR/debug/ for `arreg debug` (docs/debug.md)");
   parser.SetEpilog(
       "Options given here override the scene's module sections (docs/pipeline.md).\n"
       "Writes in DIR: overlay.mp4, frames.jsonl, run.json, mesh/NNNNNN.vtk, surface/NNNNNN.obj,\n"
@@ -131,6 +136,9 @@ int RunRun(int argc, char** argv) {
   pipeline::RecordWriter records(out_dir, options.output.png_frames);
   if (!quiet && isatty(STDERR_FILENO)) pipe.AddObserver(&progress);
   pipe.AddObserver(&records);
+  std::optional<debug::DebugRecorder> debug_recorder;
+  if (record_debug)
+    pipe.AddObserver(&debug_recorder.emplace(debug::DebugRecorderOptions{out_dir}));
 
   pipeline::RunOptions run;
   if (options.output.video && options.render.enabled)

@@ -6,6 +6,7 @@
 namespace arreg::cli {
 
 int RunBench(int argc, char** argv);
+int RunDebug(int argc, char** argv);
 int RunEval(int argc, char** argv);
 int RunInfo(int argc, char** argv);
 int RunRun(int argc, char** argv);

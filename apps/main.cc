@@ -19,6 +19,7 @@ struct Command {
 // Keep in step with README.md ("Commands").
 constexpr Command kCommands[] = {
     {"bench", arreg::cli::RunBench, "speed benchmarks that print figures and write JSON"},
+    {"debug", arreg::cli::RunDebug, "viewer of a run recorded with --debug; annotated frame PNGs"},
     {"eval", arreg::cli::RunEval, "accuracy against ground truth: Dice, Hausdorff, feature error"},
     {"info", arreg::cli::RunInfo, "describe a mesh file (counts, volume, quality)"},
     {"run", arreg::cli::RunRun, "register a model to a video (overlay, records)"},
