@@ -41,6 +41,39 @@ cv::Point2f ProjectPinhole(const render::RasterCamera& c, const Eigen::Vector3d&
   return {static_cast<float>(c.fx * p.x() / z + c.cx), static_cast<float>(c.fy * p.y() / z + c.cy)};
 }
 
+// Blinn-Phong evaluated once per vertex (Gouraud): the per-sample shader then only
+// interpolates, which keeps the supersampled overlay cheap.
+std::vector<Eigen::Vector3f> ShadeVertices(const render::RasterCamera& c, const RowMatX3d& vertices,
+                                           const RowMatX3i& faces, const Eigen::Vector3f& albedo) {
+  const RowMatX3d normals = render::VertexNormals(vertices, faces);
+  const render::ShadingOptions shading;
+  const Eigen::Matrix3d r = c.camera_from_world.linear();
+  std::vector<Eigen::Vector3f> colors(vertices.rows());
+  render::Fragment f;
+  for (int v = 0; v < vertices.rows(); ++v) {
+    f.point_in_camera = c.camera_from_world * vertices.row(v).transpose();
+    const Eigen::Vector3d n = r * normals.row(v).transpose();
+    f.normal_in_camera = n.squaredNorm() > 0 ? n.normalized() : Eigen::Vector3d(0, 0, -1);
+    f.front_facing = true;
+    colors[v] = render::ShadeBlinnPhong(albedo, f, shading);
+  }
+  return colors;
+}
+
+void DrawGouraud(const RowMatX3d& vertices, const RowMatX3i& faces, const Eigen::Vector3f& albedo,
+                 const render::DrawOptions& draw, render::RenderTarget* target) {
+  const std::vector<Eigen::Vector3f> colors =
+      ShadeVertices(target->camera(), vertices, faces, albedo);
+  target->Draw(
+      vertices, faces, RowMatX3d(),
+      [&](const render::Fragment& fr) {
+        return Eigen::Vector3f(fr.barycentric.cast<float>()[0] * colors[faces(fr.face, 0)] +
+                               fr.barycentric.cast<float>()[1] * colors[faces(fr.face, 1)] +
+                               fr.barycentric.cast<float>()[2] * colors[faces(fr.face, 2)]);
+      },
+      draw);
+}
+
 }  // namespace
 
 void OverlayRenderer::Render(const RowMatX3d& organ_vertices_mm, const RowMatX3i& organ_faces,
@@ -86,29 +119,18 @@ void OverlayRenderer::Render(const RowMatX3d& organ_vertices_mm, const RowMatX3i
       const cv::Vec3b& p = image.at<cv::Vec3b>(y, x);
       return Eigen::Vector3f(p[2] / 255.0f, p[1] / 255.0f, p[0] / 255.0f);
     });
-    const render::ShadingOptions shading;
     for (const OverlayStructure& s : internal) {
       if (s.vertices_mm == nullptr || s.faces == nullptr || s.faces->rows() == 0) continue;
-      const RowMatX3d normals = render::VertexNormals(*s.vertices_mm, *s.faces);
-      const Eigen::Vector3f albedo = s.color.cast<float>();
       render::DrawOptions draw;
       draw.opacity = static_cast<float>(s.opacity);
       draw.id = 2;
-      target.Draw(
-          *s.vertices_mm, *s.faces, normals,
-          [&](const render::Fragment& fr) { return render::ShadeBlinnPhong(albedo, fr, shading); },
-          draw);
+      DrawGouraud(*s.vertices_mm, *s.faces, s.color.cast<float>(), draw, &target);
     }
-    const RowMatX3d normals = render::VertexNormals(organ_vertices_mm, organ_faces);
-    const Eigen::Vector3f albedo = options_.organ_color.cast<float>();
     render::DrawOptions draw;
     draw.opacity = static_cast<float>(options_.organ_opacity);
     draw.cull_back_faces = true;  // the near side only: structures behind it show through
     draw.id = 1;
-    target.Draw(
-        organ_vertices_mm, organ_faces, normals,
-        [&](const render::Fragment& fr) { return render::ShadeBlinnPhong(albedo, fr, shading); },
-        draw);
+    DrawGouraud(organ_vertices_mm, organ_faces, options_.organ_color.cast<float>(), draw, &target);
     target.ResolveBgr().copyTo((*bgr)(cv::Rect(x0, y0, crop.width, crop.height)));
   }
 
