@@ -16,9 +16,31 @@ std::vector<int> ApplyCutChange(const CutChange& change, mechanics::MechanicalSt
                     "", "ApplyCutChange", "the state has ", state->num_vertices(), " vertices and ",
                     state->num_tetrahedra(), " elements, the change expects ",
                     change.num_vertices_before, " and ", change.num_tetrahedra_before);
-  ARREG_CHECK_INPUT(change.snapped.empty(), "", "ApplyCutChange", "the cut snapped ",
-                    change.snapped.size(),
-                    " vertices; mechanical rest positions cannot move (use snap_epsilon = 0)");
+  if (!change.snapped.empty()) {
+    // Snaps are applied in order (a later one may use a vertex an earlier one
+    // moved), to rest, current positions and velocities alike; only the rest
+    // data of the elements around the snapped vertices are recomputed.
+    RowMatX3d rest = state->rest_positions(), current = state->positions(),
+              velocity = state->velocities();
+    std::vector<int> vertices;
+    for (const SnappedVertex& s : change.snapped) {
+      ARREG_CHECK_INPUT(s.index >= 0 && s.index < change.num_vertices_before && s.a >= 0 &&
+                            s.a < change.num_vertices_before && s.b >= 0 &&
+                            s.b < change.num_vertices_before,
+                        "", "ApplyCutChange", "snapped vertex index out of range");
+      for (RowMatX3d* m : {&rest, &current, &velocity})
+        m->row(s.index) = (1.0 - s.t) * m->row(s.a) + s.t * m->row(s.b);
+      if (std::find(vertices.begin(), vertices.end(), s.index) == vertices.end())
+        vertices.push_back(s.index);
+    }
+    RowMatX3d moved_rest(vertices.size(), 3);
+    for (size_t i = 0; i < vertices.size(); ++i) moved_rest.row(i) = rest.row(vertices[i]);
+    state->SetRestPositions(vertices, moved_rest);  // throws with the state unchanged
+    for (int v : vertices) {
+      state->mutable_positions().row(v) = current.row(v);
+      state->mutable_velocities().row(v) = velocity.row(v);
+    }
+  }
   const int n_new = static_cast<int>(change.new_vertices.size());
   const int n = n_new + static_cast<int>(change.duplicated.size());
   if (n > 0) {

@@ -17,9 +17,10 @@ namespace arreg::cutting {
 // velocities, duplicated ones copies, and the changed elements are replaced (new
 // elements take the material of the first removed one). With the same weights in
 // rest and current configuration, an undeformed state stays force-free.
+// Vertices the cut snapped onto S move in rest and current configuration (and
+// velocity) as in the cutter; the rest data of their elements are recomputed.
 // Returns the indices of the new elements. Throws arreg::Error when the vertex or
-// element counts do not match, or when the change moved vertices by snapping
-// (MechanicalState keeps rest positions fixed: cut with snap_epsilon = 0 there).
+// element counts do not match.
 std::vector<int> ApplyCutChange(const CutChange& change, mechanics::MechanicalState* state);
 
 // Re-embeds the points (reference positions `points_rest`, #P x 3, in the rest

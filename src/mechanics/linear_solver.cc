@@ -14,11 +14,20 @@ namespace arreg::mechanics {
 LinearSolverType ParseLinearSolverType(const std::string& name) {
   if (name == "cg") return LinearSolverType::kConjugateGradient;
   if (name == "cholmod") return LinearSolverType::kCholmod;
-  throw Error("", "linear solver", "unknown '" + name + "' (expected cg or cholmod)");
+  if (name == "cholmod-pcg") return LinearSolverType::kCholmodPcg;
+  throw Error("", "linear solver", "unknown '" + name + "' (expected cg, cholmod or cholmod-pcg)");
 }
 
 const char* LinearSolverTypeName(LinearSolverType type) {
-  return type == LinearSolverType::kConjugateGradient ? "cg" : "cholmod";
+  switch (type) {
+    case LinearSolverType::kConjugateGradient:
+      return "cg";
+    case LinearSolverType::kCholmod:
+      return "cholmod";
+    case LinearSolverType::kCholmodPcg:
+      return "cholmod-pcg";
+  }
+  return "?";
 }
 
 Preconditioner ParsePreconditioner(const std::string& name) {
@@ -57,6 +66,8 @@ void LinearSolverOptions::Check() const {
                     "linear_solver.relative_tolerance", "must be > 0, got ", relative_tolerance);
   ARREG_CHECK_INPUT(max_iterations >= 1, "", "linear_solver.max_iterations", "must be >= 1, got ",
                     max_iterations);
+  ARREG_CHECK_INPUT(refactor_iterations >= 0, "", "linear_solver.refactor_iterations",
+                    "must be >= 0, got ", refactor_iterations);
 }
 
 namespace {
@@ -206,6 +217,7 @@ std::unique_ptr<LinearSolver> LinearSolver::Create(const LinearSolverOptions& op
     case LinearSolverType::kConjugateGradient:
       return std::make_unique<ConjugateGradientSolver>(options);
     case LinearSolverType::kCholmod:
+    case LinearSolverType::kCholmodPcg:
       return MakeCholmodSolver(options);
   }
   return nullptr;

@@ -10,7 +10,10 @@
 
 namespace arreg::mechanics {
 
-enum class LinearSolverType { kConjugateGradient, kCholmod };
+// kCholmodPcg: CHOLMOD's factor of an earlier matrix preconditions CG on the
+// current one (for slowly changing matrices such as corotational Hessians from
+// frame to frame); refactorised when CG needs more than refactor_iterations.
+enum class LinearSolverType { kConjugateGradient, kCholmod, kCholmodPcg };
 enum class Preconditioner {
   kNone,
   kJacobi,       // inverse of the diagonal
@@ -19,7 +22,7 @@ enum class Preconditioner {
 };
 enum class CholmodFactorization { kSupernodal, kSimplicial, kAuto };
 
-LinearSolverType ParseLinearSolverType(const std::string& name);  // "cg", "cholmod"
+LinearSolverType ParseLinearSolverType(const std::string& name);  // "cg", "cholmod", "cholmod-pcg"
 const char* LinearSolverTypeName(LinearSolverType type);
 // "none", "jacobi", "block-jacobi", "ichol"
 Preconditioner ParsePreconditioner(const std::string& name);
@@ -28,13 +31,16 @@ CholmodFactorization ParseCholmodFactorization(const std::string& name);
 
 struct LinearSolverOptions {
   LinearSolverType type = LinearSolverType::kCholmod;  // default CHOLMOD
-  // CG only:
+  // CG and cholmod-pcg (relative_tolerance, max_iterations, warm_start):
   Preconditioner preconditioner = Preconditioner::kJacobi;  // default Jacobi
   double relative_tolerance = 1e-8;  // stop when |b - A x| <= tol |b|; default 1e-8
   int max_iterations = 1000;         // iteration cap; default 1000
   bool warm_start = true;            // start from the caller's x (last solution); default true
   // CHOLMOD only:
   CholmodFactorization factorization = CholmodFactorization::kSupernodal;  // default supernodal
+  // cholmod-pcg only: when preconditioned CG needed more than this many
+  // iterations, the next solve refactorises; default 6.
+  int refactor_iterations = 6;
   void Check() const;
 };
 

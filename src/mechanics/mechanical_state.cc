@@ -174,6 +174,42 @@ std::vector<int> MechanicalState::ReplaceTetrahedra(const std::vector<int>& remo
   return ids;
 }
 
+void MechanicalState::SetRestPositions(const std::vector<int>& vertices, const RowMatX3d& rest) {
+  const int nv = num_vertices();
+  ARREG_CHECK_INPUT(static_cast<int>(rest.rows()) == static_cast<int>(vertices.size()), "",
+                    "SetRestPositions.rest", "expected ", vertices.size(), " rows, got ",
+                    rest.rows());
+  ARREG_CHECK_INPUT(rest.allFinite(), "", "SetRestPositions.rest", "non-finite position");
+  std::vector<char> moved(nv, 0);
+  for (int v : vertices) {
+    ARREG_CHECK_INPUT(v >= 0 && v < nv, "", "SetRestPositions.vertices", "index ", v,
+                      " out of range [0, ", nv, ")");
+    ARREG_CHECK_INPUT(!moved[v], "", "SetRestPositions.vertices", "vertex ", v, " repeated");
+    moved[v] = 1;
+  }
+  if (vertices.empty()) return;
+  RowMatX3d new_rest = rest_positions_;
+  for (size_t i = 0; i < vertices.size(); ++i) new_rest.row(vertices[i]) = rest.row(i);
+  // Compute everything that can fail before changing the state.
+  std::vector<std::pair<int, TetRestData>> updated;
+  for (int t = 0; t < num_tetrahedra(); ++t) {
+    if (!moved[tetrahedra_(t, 0)] && !moved[tetrahedra_(t, 1)] && !moved[tetrahedra_(t, 2)] &&
+        !moved[tetrahedra_(t, 3)])
+      continue;
+    TetRestData data;
+    const bool ok = ComputeTetRestData(
+        new_rest.row(tetrahedra_(t, 0)).transpose(), new_rest.row(tetrahedra_(t, 1)).transpose(),
+        new_rest.row(tetrahedra_(t, 2)).transpose(), new_rest.row(tetrahedra_(t, 3)).transpose(),
+        materials_[t], &data);
+    ARREG_CHECK_INPUT(ok, "", "SetRestPositions: " + TetWhere(t), "non-positive rest volume ",
+                      data.volume_mm3, " mm^3 after the move");
+    updated.emplace_back(t, data);
+  }
+  rest_positions_.swap(new_rest);
+  for (const auto& [t, data] : updated) rest_data_[t] = data;
+  ++topology_version_;
+}
+
 TetMesh MechanicalState::CurrentMesh() const {
   TetMesh m;
   m.vertices = positions_;

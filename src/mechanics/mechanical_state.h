@@ -75,6 +75,15 @@ class MechanicalState {
                                      const std::vector<Material>& new_materials,
                                      std::vector<std::pair<int, int>>* moved = nullptr);
 
+  // Moves the rest positions of `vertices` to the rows of `rest` (#vertices x 3,
+  // mm) and recomputes the rest data of the incident elements only (e.g. after
+  // a cut snapped vertices onto the cut surface). Current positions and
+  // velocities are left to the caller. Counts as a topology change (the vertex
+  // masses change). Throws arreg::Error (state unchanged) for a bad index, a row
+  // count mismatch, a repeated vertex or an incident element of non-positive
+  // rest volume.
+  void SetRestPositions(const std::vector<int>& vertices, const RowMatX3d& rest);
+
   // Incremented by every change of the element list / vertex count (sparsity
   // patterns are rebuilt when it changes) and of the fixed set.
   std::uint64_t topology_version() const { return topology_version_; }

@@ -67,6 +67,74 @@ INSTANTIATE_TEST_SUITE_P(Preconditioners, CgVsCholmod,
                                            Preconditioner::kIncompleteCholesky,
                                            Preconditioner::kNone));
 
+// CG preconditioned by the factor of an earlier step's matrix gives the same
+// steps as exact Cholesky, in few iterations, and refactorises only when CG
+// grows longer than refactor_iterations.
+TEST(CholmodPcg, SameStepsAsCholmodWithAStaleFactor) {
+  SpringScene a, b, c;
+  ImplicitEulerIntegrator direct(StepOptions(LinearSolverType::kCholmod, Preconditioner::kJacobi));
+  ImplicitEulerIntegrator jacobi(
+      StepOptions(LinearSolverType::kConjugateGradient, Preconditioner::kJacobi));
+  ImplicitEulerOptions o = StepOptions(LinearSolverType::kCholmodPcg, Preconditioner::kJacobi);
+  o.linear_solver.refactor_iterations = 1000;  // never refactorise: the first factor preconditions
+  ImplicitEulerIntegrator pcg(o);
+  int iterations = 0, jacobi_iterations = 0;
+  for (int step = 0; step < 8; ++step) {
+    jacobi_iterations += jacobi.Step(&c.state, &c.elastic, c.terms()).linear_iterations;
+    const StepSummary sa = direct.Step(&a.state, &a.elastic, a.terms());
+    const StepSummary sb = pcg.Step(&b.state, &b.elastic, b.terms());
+    ASSERT_EQ(sa.status, StepStatus::kConverged) << sa.message;
+    ASSERT_EQ(sb.status, StepStatus::kConverged) << sb.message;
+    // The first step factorises (no CG); later ones reuse that factor.
+    if (step == 0) {
+      EXPECT_EQ(sb.linear_iterations, 0);
+    } else {
+      EXPECT_GT(sb.linear_iterations, 0) << "step " << step;
+    }
+    iterations += sb.linear_iterations;
+    const RowMatX3d da = a.state.positions() - a.state.rest_positions();
+    const RowMatX3d db = b.state.positions() - b.state.rest_positions();
+    ASSERT_GT(da.norm(), 1e-3);
+    EXPECT_LT((da - db).norm(), 1e-6 * da.norm()) << "step " << step;
+  }
+  // Far fewer iterations than Jacobi-preconditioned CG needs.
+  EXPECT_LT(3 * iterations, jacobi_iterations);
+}
+
+TEST(CholmodPcg, RefactorisesAfterALongCg) {
+  SpringScene s;
+  SystemMatrix H(s.state.num_vertices(), s.state.tetrahedra());
+  s.elastic.Update(s.state, s.state.positions());
+  s.elastic.AddHessian(s.state, s.state.positions(), 1.0, &H);
+  s.springs.AddHessian(s.state, s.state.positions(), 1.0, &H);
+  H.ApplyDirichlet(s.state.fixed_mask());
+  LinearSolverOptions o;
+  o.type = LinearSolverType::kCholmodPcg;
+  o.relative_tolerance = 1e-10;
+  o.refactor_iterations = 2;
+  auto solver = LinearSolver::Create(o);
+  const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(H.num_dofs(), -1.0, 2.0);
+  Eigen::VectorXd x;
+  EXPECT_TRUE(solver->Solve(H.matrix(), b, &x).numeric_factorization);
+  // A different matrix (stiffness doubled, diagonal shifted): the old factor
+  // preconditions CG, which converges but needs more than 2 iterations...
+  for (int k = 0; k < H.nonzeros(); ++k) H.values()[k] *= 2.0;
+  for (int i = 0; i < H.num_dofs(); ++i) H.values()[H.DiagonalSlot(i)] += 1e-3 * (1 + i % 7);
+  solver->ValuesChanged();
+  x.setZero(b.size());
+  const LinearSolverSummary stale = solver->Solve(H.matrix(), b, &x);
+  EXPECT_EQ(stale.status, LinearSolverStatus::kConverged);
+  EXPECT_FALSE(stale.numeric_factorization);
+  EXPECT_GT(stale.iterations, 2);
+  EXPECT_LT((H.matrix() * x - b).norm(), 1e-9 * b.norm());
+  // ... so the next solve after a value change refactorises and is exact.
+  solver->ValuesChanged();
+  const LinearSolverSummary fresh = solver->Solve(H.matrix(), b, &x);
+  EXPECT_TRUE(fresh.numeric_factorization);
+  EXPECT_EQ(fresh.iterations, 0);
+  EXPECT_LT((H.matrix() * x - b).norm(), 1e-10 * b.norm());
+}
+
 TEST(Integrator, FixedVerticesStayAndSpringsPull) {
   SpringScene s;
   ImplicitEulerIntegrator integrator(
@@ -153,7 +221,8 @@ TEST(LinearSolver, ReportsIndefiniteMatrices) {
   A.insert(2, 2) = 1.0;
   A.makeCompressed();
   const Eigen::VectorXd b = Eigen::VectorXd::Ones(3);
-  for (LinearSolverType type : {LinearSolverType::kCholmod, LinearSolverType::kConjugateGradient}) {
+  for (LinearSolverType type : {LinearSolverType::kCholmod, LinearSolverType::kConjugateGradient,
+                                LinearSolverType::kCholmodPcg}) {
     LinearSolverOptions o;
     o.type = type;
     o.preconditioner = Preconditioner::kNone;

@@ -2,6 +2,8 @@
 // rest data recomputed only locally, solver state rebuilt.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "core/error.h"
 #include "mechanics/integrator.h"
 #include "mechanics/units.h"
@@ -79,6 +81,66 @@ TEST(MechanicalState, InvalidReplacementThrowsAndLeavesTheStateUnchanged) {
   EXPECT_THROW(state.ReplaceTetrahedra({0, 0}, RowMatX4i(0, 4), {}), Error);
   EXPECT_THROW(state.ReplaceTetrahedra({99}, RowMatX4i(0, 4), {}), Error);
   EXPECT_EQ(state.tetrahedra(), before);
+}
+
+TEST(MechanicalState, SetRestPositionsRecomputesOnlyIncidentElements) {
+  const TetMesh box = SmallBox();
+  MechanicalState state(box, Material{3000, 0.45, 1000});
+  int interior = -1;  // the vertex at (10, 10, 10)
+  for (int v = 0; v < state.num_vertices(); ++v)
+    if ((state.rest_position(v) - Eigen::Vector3d(10, 10, 10)).norm() < 1e-12) interior = v;
+  ASSERT_GE(interior, 0);
+  const std::vector<TetRestData> before = state.rest_data();
+  const double mass_before = state.TotalMassKg();
+  const auto version = state.topology_version();
+  RowMatX3d moved(1, 3);
+  moved << 11.5, 9.0, 10.7;
+  state.SetRestPositions({interior}, moved);
+  EXPECT_GT(state.topology_version(), version);
+  EXPECT_EQ(state.rest_position(interior), Eigen::Vector3d(11.5, 9.0, 10.7));
+  // Moving an interior vertex inside its star keeps the total volume and mass.
+  EXPECT_NEAR(state.TotalMassKg(), mass_before, 1e-12 * mass_before);
+  // Every element equals a state built from scratch on the moved mesh; only the
+  // incident ones changed.
+  TetMesh moved_mesh = box;
+  moved_mesh.vertices.row(interior) = moved.row(0);
+  const MechanicalState fresh(moved_mesh, Material{3000, 0.45, 1000});
+  int changed = 0;
+  for (int t = 0; t < state.num_tetrahedra(); ++t) {
+    const bool incident = (state.tetrahedra().row(t).array() == interior).any();
+    EXPECT_NEAR(state.rest_data(t).volume_mm3, fresh.rest_data(t).volume_mm3, 1e-9);
+    EXPECT_LT((state.rest_data(t).shape_gradients - fresh.rest_data(t).shape_gradients)
+                  .cwiseAbs()
+                  .maxCoeff(),
+              1e-12);
+    if (!incident) {
+      EXPECT_EQ(state.rest_data(t).volume_mm3, before[t].volume_mm3);
+    } else if (std::abs(state.rest_data(t).volume_mm3 - before[t].volume_mm3) > 1e-9) {
+      ++changed;
+    }
+  }
+  EXPECT_GT(changed, 0);
+}
+
+TEST(MechanicalState, SetRestPositionsThatInvertAnElementThrowsAndLeavesTheStateUnchanged) {
+  MechanicalState state(SmallBox(), Material{});
+  int interior = -1;
+  for (int v = 0; v < state.num_vertices(); ++v)
+    if ((state.rest_position(v) - Eigen::Vector3d(10, 10, 10)).norm() < 1e-12) interior = v;
+  ASSERT_GE(interior, 0);
+  const RowMatX3d rest_before = state.rest_positions();
+  const std::vector<TetRestData> data_before = state.rest_data();
+  const auto version = state.topology_version();
+  RowMatX3d far(1, 3);
+  far << 25.0, 10.0, 10.0;  // beyond the neighbour at (20, 10, 10): inverts elements
+  EXPECT_THROW(state.SetRestPositions({interior}, far), Error);
+  EXPECT_THROW(state.SetRestPositions({interior, interior}, RowMatX3d::Zero(2, 3)), Error);
+  EXPECT_THROW(state.SetRestPositions({-1}, RowMatX3d::Zero(1, 3)), Error);
+  EXPECT_THROW(state.SetRestPositions({interior}, RowMatX3d::Zero(2, 3)), Error);
+  EXPECT_EQ(state.rest_positions(), rest_before);
+  EXPECT_EQ(state.topology_version(), version);
+  for (int t = 0; t < state.num_tetrahedra(); ++t)
+    EXPECT_EQ(state.rest_data(t).volume_mm3, data_before[t].volume_mm3);
 }
 
 TEST(MechanicalState, PatchTestStillHoldsAfterASplitWithStateCarriedOver) {
