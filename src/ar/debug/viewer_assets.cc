@@ -53,7 +53,7 @@ h2 { font-size: 13px; margin: 10px 0 4px 0; color: #aaa; }
 #layers label { margin-right: 10px; white-space: nowrap; }
 main { display: flex; gap: 10px; padding: 10px; }
 #stage { flex: 1; min-width: 0; }
-#view { max-width: 100%; background: #000; cursor: crosshair; }
+#view { width: 100%; height: auto; background: #000; cursor: crosshair; }
 aside { width: 340px; }
 table { border-collapse: collapse; width: 100%; }
 td { padding: 1px 4px; border-bottom: 1px solid #333; }
@@ -159,6 +159,7 @@ const char kViewerJs[] = R"JS('use strict';
       current = { rec: rec, img: im, topo: topo };
       busy = false;
       draw();
+      canvas.dataset.frame = String(rec.frame);  // the frame on screen (for tests and tools)
       numbers(rec);
       plotMu();
     })));
@@ -348,7 +349,7 @@ const char kViewerJs[] = R"JS('use strict';
   function select(id) {
     selected = id;
     $('feature-info').textContent = 'feature ' + id + ': loading track...';
-    withTracks(() => { draw(); plotMu(); });
+    withTracks(() => { draw(); plotMu(); canvas.dataset.selected = String(id); });
   }
 
   canvas.addEventListener('click', (ev) => {
