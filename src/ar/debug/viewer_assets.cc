@@ -125,7 +125,10 @@ const char kViewerJs[] = R"JS('use strict';
     loadScript('data/frame_' + pad(n) + '.js', () => { waiting.delete(n); status('no data for frame ' + n); });
   }
   function withImage(n, cb) {
-    if (images.has(n) && images.get(n).complete) return cb(images.get(n));
+    if (images.has(n) && images.get(n).complete) {
+      const done = images.get(n);
+      return cb(done.naturalWidth > 0 ? done : null);  // a broken image cannot be drawn
+    }
     const im = images.get(n) || new Image();
     im.addEventListener('load', () => cb(im), { once: true });
     im.addEventListener('error', () => cb(null), { once: true });
