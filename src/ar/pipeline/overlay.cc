@@ -112,12 +112,15 @@ void OverlayRenderer::Render(const RowMatX3d& organ_vertices_mm, const RowMatX3i
     crop.cx -= x0;
     crop.cy -= y0;
     render::RenderTarget target(crop, options_.supersampling);
-    const cv::Mat& image = *bgr;
+    // The frame under the box as linear RGB floats, read once per pixel, not per sample.
+    cv::Mat rgb;
+    (*bgr)(cv::Rect(x0, y0, crop.width, crop.height)).convertTo(rgb, CV_32FC3, 1.0 / 255.0);
     target.ClearWith([&](double u, double v) {
-      const int x = std::clamp(static_cast<int>(std::lround(u)), 0, crop.width - 1) + x0;
-      const int y = std::clamp(static_cast<int>(std::lround(v)), 0, crop.height - 1) + y0;
-      const cv::Vec3b& p = image.at<cv::Vec3b>(y, x);
-      return Eigen::Vector3f(p[2] / 255.0f, p[1] / 255.0f, p[0] / 255.0f);
+      // Sample centres lie in [-0.5, size - 0.5): rounding picks the pixel that holds them.
+      const int x = std::min(static_cast<int>(u + 0.5), crop.width - 1);
+      const int y = std::min(static_cast<int>(v + 0.5), crop.height - 1);
+      const cv::Vec3f& p = rgb.at<cv::Vec3f>(y, x);
+      return Eigen::Vector3f(p[2], p[1], p[0]);
     });
     for (const OverlayStructure& s : internal) {
       if (s.vertices_mm == nullptr || s.faces == nullptr || s.faces->rows() == 0) continue;

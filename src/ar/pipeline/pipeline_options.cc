@@ -140,6 +140,9 @@ void ReadOutput(const Scene& scene, OutputStageOptions* o) {
   JsonObjectReader r(scene.output, scene.path, "output");
   r.Optional("video", &o->video);
   r.Optional("crf", &o->crf);
+  r.OptionalChoice("preset",
+                   {"ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow"},
+                   &o->preset);
   r.Optional("png_frames", &o->png_frames);
   r.Optional("save_every", &o->save_every);
   r.Finish();
@@ -210,11 +213,9 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                  {"show_features", o.render.show_features},
                  {"show_targets", o.render.show_targets},
                  {"show_springs", o.render.show_springs}};
-  j["output"] = {{"video", o.output.video},
-                 {"crf", o.output.crf},
-                 {"encode_threads", o.output.encode_threads},
-                 {"png_frames", o.output.png_frames},
-                 {"save_every", o.output.save_every}};
+  j["output"] = {{"video", o.output.video},           {"crf", o.output.crf},
+                 {"preset", o.output.preset},         {"encode_threads", o.output.encode_threads},
+                 {"png_frames", o.output.png_frames}, {"save_every", o.output.save_every}};
   j["max_frames"] = o.max_frames;
   j["roi_dilation_px"] = o.roi_dilation_px;
   return j;

@@ -69,6 +69,9 @@ struct RenderStageOptions {
 struct OutputStageOptions {
   bool video = true;  // overlay.mp4; default true
   int crf = 18;       // x264 quality of overlay.mp4 (0..51); default 18
+  // x264 speed preset of overlay.mp4; default "ultrafast": at CRF 18 the overlay looks the
+  // same, the file is larger, and encoding costs a fraction of "veryfast" (docs/pipeline.md).
+  std::string preset = "ultrafast";
   // x264 encoder threads; 1 (default) keeps timings single-threaded, 0 lets FFmpeg choose.
   int encode_threads = 1;
   bool png_frames = false;  // also frames/NNNNNN.png; default false

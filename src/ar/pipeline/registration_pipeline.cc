@@ -268,6 +268,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   if (!run_options.overlay_video_path.empty()) {
     VideoWriterOptions wo;
     wo.crf = o.output.crf;
+    wo.preset = o.output.preset;
     wo.encode_threads = o.output.encode_threads;
     const std::string parent =
         std::filesystem::path(run_options.overlay_video_path).parent_path().string();
