@@ -32,7 +32,10 @@ struct Recorded {
 const Recorded& RecordedRun() {
   static const Recorded r = [] {
     Recorded x;
-    x.run = ::arreg::testing::ScratchDir("debug_run");
+    // One folder per test: ctest runs the tests of this file as parallel processes.
+    x.run = ::arreg::testing::ScratchDir(
+        std::string("debug_run_") +
+        ::testing::UnitTest::GetInstance()->current_test_info()->name());
     x.detections = fixture::RecordRun(x.run);
     return x;
   }();
