@@ -74,8 +74,8 @@ struct Figures {
 };
 
 struct BenchSettings {
-  std::string solver = "cholmod", preconditioner = "jacobi", rotation = "polar";
-  std::string factorization = "supernodal";
+  std::string solver = "cholmod-pcg", preconditioner = "jacobi", rotation = "polar";
+  std::string factorization = "auto";
   int steps = 200, warmup = 5, repeats = 5, springs = 200;
   double dt_s = 1.0 / 30.0, stiffness = 10.0, youngs_pa = 3000.0, poisson = 0.45;
   double cg_tolerance = 1e-6, amplitude = 0.05;

@@ -64,12 +64,38 @@ void CorotationalElasticity::AddHessian(const MechanicalState& state, const RowM
                                         double scale, SystemMatrix* hessian) const {
   ARREG_ASSERT(static_cast<int>(rotations_.size()) == state.num_tetrahedra(),
                "Update() not called after a topology change");
+  // The blocks of WarpedStiffnessBlock written straight into their value
+  // slots (the hot loop of the assembly: no 3x3 temporaries, each upper block
+  // and its transpose from the same products).
+  const RowMatX4i& tets = state.tetrahedra();
+  double* values = hessian->values();
   for (int t = 0; t < state.num_tetrahedra(); ++t) {
     const TetRestData& rest = state.rest_data(t);
-    for (int a = 0; a < 4; ++a)
-      for (int b = a; b < 4; ++b)
-        hessian->AddSymmetricElementBlock(
-            t, a, b, WarpedStiffnessBlock(rest, rotated_gradients_[t], a, b), scale);
+    const Eigen::Matrix<double, 4, 3>& g = rotated_gradients_[t];
+    const double vl = scale * rest.volume_mm3 * rest.lambda_kpa;
+    const double vm = scale * rest.volume_mm3 * rest.mu_kpa;
+    int stride[4];
+    for (int a = 0; a < 4; ++a) stride[a] = hessian->column_stride(tets(t, a));
+    for (int a = 0; a < 4; ++a) {
+      const double ga[3] = {g(a, 0), g(a, 1), g(a, 2)};
+      for (int b = a; b < 4; ++b) {
+        const double gb[3] = {g(b, 0), g(b, 1), g(b, 2)};
+        const double d = vm * (ga[0] * gb[0] + ga[1] * gb[1] + ga[2] * gb[2]);
+        // block(r, c) = vl ga_r gb_c + vm gb_r ga_c + d delta_rc.
+        double block[3][3];
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) block[r][c] = vl * ga[r] * gb[c] + vm * gb[r] * ga[c];
+        for (int r = 0; r < 3; ++r) block[r][r] += d;
+        double* ab = values + hessian->BlockSlot(t, a, b);
+        for (int c = 0; c < 3; ++c)
+          for (int r = 0; r < 3; ++r) ab[c * stride[b] + r] += block[r][c];
+        if (a != b) {
+          double* ba = values + hessian->BlockSlot(t, b, a);
+          for (int c = 0; c < 3; ++c)
+            for (int r = 0; r < 3; ++r) ba[c * stride[a] + r] += block[c][r];
+        }
+      }
+    }
   }
 }
 

@@ -37,7 +37,8 @@ struct LinearSolverOptions {
   int max_iterations = 1000;         // iteration cap; default 1000
   bool warm_start = true;            // start from the caller's x (last solution); default true
   // CHOLMOD only:
-  CholmodFactorization factorization = CholmodFactorization::kSupernodal;  // default supernodal
+  // default auto: supernodal when the factor needs >= 100 flops per nonzero
+  CholmodFactorization factorization = CholmodFactorization::kAuto;
   // cholmod-pcg only: when preconditioned CG needed more than this many
   // iterations, the next solve refactorises; default 6.
   int refactor_iterations = 6;
