@@ -210,7 +210,7 @@ int RunBenchMechanics(int argc, char** argv) {
   int seed = 1;
   bool scaling = false;
   OptionParser parser(
-      "arreg bench mechanics --mesh M [--solver cg|cholmod] [--steps N] [--json OUT]",
+      "arreg bench mechanics --mesh M [--solver cg|cholmod|cholmod-pcg] [--steps N] [--json OUT]",
       "Times the registration's mechanical step: corotational tetrahedra pulled by "
       "springs from embedded points to moving targets, implicit Euler with one Newton "
       "step per frame. Prints medians over --repeats runs of --steps steps each.");
