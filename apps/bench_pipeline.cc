@@ -53,7 +53,7 @@ struct Measurement {
 const char* kStages[7] = {"decode", "track", "lift", "mechanics", "cutting", "render", "encode"};
 
 Measurement Measure(const Scene& scene, const pipeline::PipelineOptions& options, bool video,
-                    int repeats) {
+                    int repeats, bool cpu_clock) {
   Measurement m;
   const std::string video_path = (std::filesystem::temp_directory_path() /
                                   ("arreg-bench-pipeline-" + std::to_string(getpid()) + ".mp4"))
@@ -64,6 +64,7 @@ Measurement Measure(const Scene& scene, const pipeline::PipelineOptions& options
     pipe.AddObserver(&c);
     pipeline::RunOptions run;
     if (video) run.overlay_video_path = video_path;
+    run.thread_cpu_clock = cpu_clock;
     pipe.Run(run);
     ARREG_CHECK_INPUT(c.frames > 0, scene.video_path, "", "needs at least two frames");
     const pipeline::StageTimes& s = c.sum;
@@ -102,6 +103,7 @@ int RunBenchPipeline(int argc, char** argv) {
   std::string scene_path, json_path;
   int repeats = 3, frames = -1;
   bool no_topology = false;
+  std::string clock = "wall";
   OptionParser parser(
       "arreg bench pipeline --scene S.json [--json OUT] [options]",
       "Runs the registration of a scene without writing records and prints the median (over "
@@ -113,8 +115,13 @@ int RunBenchPipeline(int argc, char** argv) {
   parser.AddInt("repeats", &repeats, "N", "runs per measurement (median taken)");
   parser.AddInt("frames", &frames, "N", "frames per run (-1: the whole video)");
   parser.AddFlag("no-topology", &no_topology, "without cut detection and handling");
+  parser.AddString("clock", &clock, "wall|cpu",
+                   "stage times on the wall clock or on the thread's CPU clock (busy machines)");
   if (!parser.Parse(argc, argv)) return 0;
   ARREG_CHECK_INPUT(repeats >= 1, "", "--repeats", "must be >= 1, got ", repeats);
+  ARREG_CHECK_INPUT(clock == "wall" || clock == "cpu", "", "--clock", "expected wall or cpu, got '",
+                    clock, "'");
+  const bool cpu = clock == "cpu";
 
   const Scene scene = ReadScene(scene_path);
   pipeline::PipelineOptions options = pipeline::ReadPipelineOptions(scene);
@@ -123,17 +130,17 @@ int RunBenchPipeline(int argc, char** argv) {
   if (no_topology) options.cutting.enabled = false;
   options.Check();
 
-  const Measurement with_video = Measure(scene, options, true, repeats);
-  const Measurement without_video = Measure(scene, options, false, repeats);
+  const Measurement with_video = Measure(scene, options, true, repeats, cpu);
+  const Measurement without_video = Measure(scene, options, false, repeats, cpu);
   pipeline::PipelineOptions bare = options;
   bare.render.enabled = false;
-  const Measurement without_render = Measure(scene, bare, false, repeats);
+  const Measurement without_render = Measure(scene, bare, false, repeats, cpu);
 
   std::printf(
       "scene %s: %dx%d, %d frames, %.0f alive features on average, topology %s, "
       "%d repeats\n",
       scene_path.c_str(), scene.camera.width, scene.camera.height, with_video.frames,
-      with_video.mean_features, options.cutting.enabled ? "on" : "off", repeats);
+      with_video.mean_features, options.cutting.enabled ? "on" : "off", repeats, clock.c_str());
   Print("with overlay video (end to end):", with_video);
   Print("without video encoding:", without_video);
   Print("without rendering and encoding:", without_render);
@@ -145,6 +152,7 @@ int RunBenchPipeline(int argc, char** argv) {
     out["height"] = scene.camera.height;
     out["frames"] = with_video.frames;
     out["repeats"] = repeats;
+    out["clock"] = clock;
     out["topology"] = options.cutting.enabled;
     out["with_video"] = Report(with_video);
     out["without_video"] = Report(without_video);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <filesystem>
 #include <opencv2/imgproc.hpp>
 #include <optional>
@@ -60,9 +61,16 @@ nlohmann::json CutEvent::ToJson() const {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double MsSince(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+// Milliseconds on the wall clock, or on this thread's CPU clock (timings on a shared machine).
+double NowMs(bool thread_cpu) {
+  if (thread_cpu) {
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+  }
+  return std::chrono::duration<double, std::milli>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
 }
 
 RowMatX3d Transform(const RowMatX3d& points, double scale, const Eigen::Isometry3d& t) {
@@ -150,6 +158,9 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   VideoReader& reader = impl_->reader;
   reader.Seek(0);
   const double fps = reader.fps() > 0 ? reader.fps() : 25.0;
+  const bool cpu_clock = run_options.thread_cpu_clock;
+  auto now = [cpu_clock] { return NowMs(cpu_clock); };
+  auto since = [cpu_clock](double t) { return NowMs(cpu_clock) - t; };
   int num_frames = reader.frame_count();
   if (o.max_frames > 0) num_frames = std::min(num_frames, o.max_frames);
   int save_every = run_options.save_every;
@@ -202,11 +213,11 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   const render::RasterCamera raster = ToRasterCamera(camera);
   cv::Mat bgr;
   StageTimes ms;
-  auto t0 = Clock::now();
+  auto t0 = now();
   ARREG_CHECK_INPUT(reader.Read(&bgr), scene.video_path, "frame 0", "cannot read the first frame");
-  ms.decode = MsSince(t0);
+  ms.decode = since(t0);
 
-  t0 = Clock::now();
+  t0 = now();
   FeatureTracker tracker(o.tracking);
   cv::Mat roi = render::RenderMask(raster, surface.vertices, surface.faces);
   tracker.Initialize(bgr, roi);
@@ -223,16 +234,16 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     row_of_id[f.id] = r;
     features.push_back(v);
   }
-  ms.track = MsSince(t0);
+  ms.track = since(t0);
   const int nf = static_cast<int>(features.size());
 
-  t0 = Clock::now();
+  t0 = now();
   lift::FeatureLifter lifter(o.lifting);
   const std::vector<lift::FeatureAttachment> attachments =
       lifter.Attach(camera, pixels, &surface, std::nullopt);
-  ms.lift = MsSince(t0);
+  ms.lift = since(t0);
 
-  t0 = Clock::now();
+  t0 = now();
   RowMatX3d attach_points(nf, 3);
   for (int r = 0; r < nf; ++r) attach_points.row(r) = attachments[r].point_mm.transpose();
   mechanics::EmbeddedPoints feature_embedding =
@@ -247,7 +258,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     v.alive = v.spring_active = true;
     ++attached;
   }
-  ms.mechanics = MsSince(t0);
+  ms.mechanics = since(t0);
 
   // Cut detection over the attached features (detector ids = feature rows).
   std::optional<cutting::CutDetector> detector;
@@ -288,8 +299,8 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   start.features_detected = nf;
   start.features_attached = attached;
   for (FrameObserver* ob : impl_->observers) ob->OnStart(start);
-  ARREG_LOG_INFO("run: ", nf, " features detected in the model silhouette, ", attached,
-                 " attached to the surface");
+  ARREG_LOG_DEBUG("run: ", nf, " features detected in the model silhouette, ", attached,
+                  " attached to the surface");
 
   RunSummary summary;
   summary.topology = topology;
@@ -298,7 +309,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   std::optional<SurfaceMesh> cut_surface;
   std::vector<CutEvent> events;
   cv::Mat overlay_image;
-  const auto run_start = Clock::now();
+  const auto run_start = std::chrono::steady_clock::now();
   RowMatX3d frame0_surface_vertices;
 
   for (int frame = 0; frame < num_frames; ++frame) {
@@ -306,12 +317,12 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     FrameStats stats;
     if (frame > 0) {
       ms = StageTimes();
-      t0 = Clock::now();
+      t0 = now();
       if (!reader.Read(&bgr)) break;
-      ms.decode = MsSince(t0);
+      ms.decode = since(t0);
 
       // Tracking.
-      t0 = Clock::now();
+      t0 = now();
       cv::Mat frame_roi;
       if (o.roi_dilation_px >= 0) {
         frame_roi = render::RenderMask(raster, surface.vertices, surface.faces);
@@ -335,10 +346,10 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
         }
       }
       for (int r = 0; r < nf; ++r) tracked[r] = features[r].track_status == TrackStatus::kTracked;
-      ms.track = MsSince(t0);
+      ms.track = since(t0);
 
       // Lifting.
-      t0 = Clock::now();
+      t0 = now();
       const RowMatX3d* cast_surface = nullptr;
       if (o.lifting.surface_update == lift::SurfaceUpdate::kRayCastWithFallback) {
         // The frame-0 boundary's vertices keep their indices through cuts (cuts only add).
@@ -347,10 +358,10 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       }
       lifter.Update(camera, pixels, tracked, cast_surface);
       targets = lifter.targets_mm();
-      ms.lift = MsSince(t0);
+      ms.lift = since(t0);
 
       // Mechanics: springs follow the targets, one implicit Euler step.
-      t0 = Clock::now();
+      t0 = now();
       for (int r = 0; r < nf; ++r) {
         FeatureView& v = features[r];
         v.lift_status = lifter.status()[r];
@@ -365,7 +376,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       const mechanics::StepSummary step = integrator.Step(&state, &elastic, terms);
       stats.mechanics_status = mechanics::StepStatusName(step.status);
       stats.inverted_elements = step.inverted_elements;
-      ms.mechanics = MsSince(t0);
+      ms.mechanics = since(t0);
     } else {
       stats.mechanics_status = mechanics::StepStatusName(mechanics::StepStatus::kConverged);
     }
@@ -373,7 +384,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
 
     // Cutting.
     if (topology) {
-      t0 = Clock::now();
+      t0 = now();
       cutting::FrameFeatures ff;
       for (int r = 0; r < nf; ++r)
         if (features[r].spring_active) ff.ids.push_back(r);
@@ -447,11 +458,11 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
         events.push_back(ev);
         ++summary.cut_events;
       }
-      ms.cutting = MsSince(t0);
+      ms.cutting = since(t0);
     }
 
     // Update embedded structures and the boundary; statistics.
-    t0 = Clock::now();
+    t0 = now();
     surface.vertices = state.positions();
     for (size_t k = 0; k < internal.size(); ++k)
       internal_embedding[k].Positions(state.positions(), state.tetrahedra(), &internal[k].vertices);
@@ -467,11 +478,11 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       stats.spring_length_max_mm = std::max(stats.spring_length_max_mm, v.spring_length_mm);
     }
     stats.spring_length_mean_mm = stats.features_alive ? sum / stats.features_alive : 0.0;
-    ms.mechanics += MsSince(t0);
+    ms.mechanics += since(t0);
 
     // Render and encode.
     if (o.render.enabled) {
-      t0 = Clock::now();
+      t0 = now();
       bgr.copyTo(overlay_image);
       std::vector<OverlayStructure> layers_internal;
       for (size_t k = 0; k < internal.size(); ++k)
@@ -484,14 +495,14 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       layers.anchors_mm = &anchors;
       layers.alive = &alive_rows;
       overlay.Render(surface.vertices, surface.faces, layers_internal, layers, &overlay_image);
-      ms.render = MsSince(t0);
+      ms.render = since(t0);
     } else {
       overlay_image = cv::Mat();
     }
     if (writer.is_open()) {
-      t0 = Clock::now();
+      t0 = now();
       writer.Write(overlay_image.empty() ? bgr : overlay_image);
-      ms.encode = MsSince(t0);
+      ms.encode = since(t0);
     }
 
     const bool stopping = run_options.stop != nullptr && run_options.stop->load();
@@ -514,9 +525,9 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     fs.internal_names = &impl_->model.internal_names;
     fs.stats = stats;
     fs.ms = ms;
-    t0 = Clock::now();
+    t0 = now();
     for (FrameObserver* ob : impl_->observers) ob->OnFrame(fs);
-    ms.record = MsSince(t0);
+    ms.record = since(t0);
     summary.total_ms += ms;
     ++summary.frames;
     if (stopping && frame < num_frames - 1) {
@@ -525,11 +536,12 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     }
   }
   if (writer.is_open()) {
-    const auto t = Clock::now();
+    const double t = now();
     writer.Close();
-    summary.total_ms.encode += MsSince(t);
+    summary.total_ms.encode += since(t);
   }
-  summary.seconds = std::chrono::duration<double>(Clock::now() - run_start).count();
+  summary.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count();
   for (FrameObserver* ob : impl_->observers) ob->OnFinish(summary);
   return summary;
 }

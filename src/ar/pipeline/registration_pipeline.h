@@ -31,6 +31,9 @@ struct RunOptions {
   // Frames whose meshes are saved: every k-th (and the last). 0 (default) uses the ground
   // truth's surface_every_k when the scene names one, else options.output.save_every.
   int save_every = 0;
+  // Stage times on this thread's CPU clock instead of the wall clock (benchmarks on a busy
+  // machine; decoding and encoding run on this thread with one thread each). Default false.
+  bool thread_cpu_clock = false;
 };
 
 class RegistrationPipeline {
