@@ -2,6 +2,7 @@
 // in place, a rigid shift is followed, the records are complete and a stop leaves them complete.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <filesystem>
@@ -244,6 +245,61 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_DOUBLE_EQ(o.render.organ_opacity, 0.5);
   EXPECT_TRUE(o.render.wireframe);
   EXPECT_EQ(o.tracking.max_features, 500);
+}
+
+TEST(Overlay, DrawsOnlyOverTheOrganAndBlendsByOpacity) {
+  PinholeCamera camera;
+  camera.width = 160;
+  camera.height = 128;
+  camera.fx = camera.fy = 150;
+  camera.cx = 79.5;
+  camera.cy = 63.5;
+  camera.LookAt(Eigen::Vector3d(0, 0, 200), Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 1, 0));
+  const TetMesh box = MakeBoxTetMesh(Eigen::Vector3d(40, 40, 10), Eigen::Vector3i(2, 2, 1));
+  SurfaceMesh surface = ExtractBoundary(box);
+  surface.vertices.rowwise() -= Eigen::RowVector3d(20, 20, 10);
+  const cv::Mat frame(camera.height, camera.width, CV_8UC3, cv::Scalar(40, 60, 80));
+  const cv::Mat silhouette =
+      render::RenderMask(ToRasterCamera(camera), surface.vertices, surface.faces);
+  for (double opacity : {0.0, 0.35, 1.0}) {
+    RenderStageOptions o;
+    o.organ_opacity = opacity;
+    OverlayRenderer overlay(camera, o);
+    cv::Mat out = frame.clone();
+    overlay.Render(surface.vertices, surface.faces, {}, OverlayLayers(), &out);
+    int changed_outside = 0, changed_inside = 0, inside = 0;
+    for (int y = 0; y < out.rows; ++y)
+      for (int x = 0; x < out.cols; ++x) {
+        const cv::Vec3b d = out.at<cv::Vec3b>(y, x), f = frame.at<cv::Vec3b>(y, x);
+        const int diff = std::abs(d[0] - f[0]) + std::abs(d[1] - f[1]) + std::abs(d[2] - f[2]);
+        // Interior pixels: away from the silhouette's anti-aliased edge.
+        bool interior = true;
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int yy = std::clamp(y + dy, 0, out.rows - 1),
+                      xx = std::clamp(x + dx, 0, out.cols - 1);
+            interior = interior && silhouette.at<uint8_t>(yy, xx) > 0;
+          }
+        bool exterior = true;
+        for (int dy = -2; dy <= 2; ++dy)
+          for (int dx = -2; dx <= 2; ++dx) {
+            const int yy = std::clamp(y + dy, 0, out.rows - 1),
+                      xx = std::clamp(x + dx, 0, out.cols - 1);
+            exterior = exterior && silhouette.at<uint8_t>(yy, xx) == 0;
+          }
+        if (exterior && diff > 0) ++changed_outside;
+        if (interior) {
+          ++inside;
+          if (diff > 6) ++changed_inside;
+        }
+      }
+    EXPECT_EQ(changed_outside, 0) << opacity;  // the frame is kept exactly off the organ
+    ASSERT_GT(inside, 100);
+    if (opacity == 0.0)
+      EXPECT_EQ(changed_inside, 0);  // fully transparent: the frame shows through unchanged
+    else
+      EXPECT_EQ(changed_inside, inside) << opacity;  // every interior pixel is tinted
+  }
 }
 
 }  // namespace

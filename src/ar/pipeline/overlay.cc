@@ -123,7 +123,9 @@ void OverlayRenderer::Render(const RowMatX3d& organ_vertices_mm, const RowMatX3i
       return Eigen::Vector3f(p[2], p[1], p[0]);
     });
     for (const OverlayStructure& s : internal) {
-      if (s.vertices_mm == nullptr || s.faces == nullptr || s.faces->rows() == 0) continue;
+      // Opacity 0 hides a structure (the rasterizer only blends opacities in (0, 1]).
+      if (s.vertices_mm == nullptr || s.faces == nullptr || s.faces->rows() == 0 || s.opacity <= 0)
+        continue;
       render::DrawOptions draw;
       draw.opacity = static_cast<float>(s.opacity);
       draw.id = 2;
@@ -133,7 +135,9 @@ void OverlayRenderer::Render(const RowMatX3d& organ_vertices_mm, const RowMatX3i
     draw.opacity = static_cast<float>(options_.organ_opacity);
     draw.cull_back_faces = true;  // the near side only: structures behind it show through
     draw.id = 1;
-    DrawGouraud(organ_vertices_mm, organ_faces, options_.organ_color.cast<float>(), draw, &target);
+    if (options_.organ_opacity > 0)
+      DrawGouraud(organ_vertices_mm, organ_faces, options_.organ_color.cast<float>(), draw,
+                  &target);
     target.ResolveBgr().copyTo((*bgr)(cv::Rect(x0, y0, crop.width, crop.height)));
   }
 
