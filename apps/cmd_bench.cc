@@ -19,8 +19,10 @@ struct Bench {
 const Bench kBenches[] = {
     {"cutting", RunBenchCutting, "beam cut: ours vs Bielser (growth, conditioning), event time"},
     {"detection", RunBenchDetection, "cut detection per frame (700 features, ~9,000 pairs)"},
-    {"mechanics", RunBenchMechanics, "implicit corotational step driven by springs (ms/step, phases)"},
-    {"pipeline", RunBenchPipeline, "arreg run per stage (decode .. encode), fps with/without video"},
+    {"mechanics", RunBenchMechanics,
+     "implicit corotational step driven by springs (ms/step, phases)"},
+    {"pipeline", RunBenchPipeline,
+     "arreg run per stage (decode .. encode), fps with/without video"},
     {"tracking", RunBenchTracking, "video decode, SURF detection and LK tracking speed"},
     {nullptr, nullptr, nullptr},  // end marker; keeps the table valid while it grows
 };

@@ -4,8 +4,8 @@
 #include <atomic>
 #include <chrono>
 #include <csignal>
-#include <optional>
 #include <cstdio>
+#include <optional>
 #include <string>
 
 #include "ar/debug/recorder.h"
@@ -137,8 +137,7 @@ int RunRun(int argc, char** argv) {
   if (!quiet && isatty(STDERR_FILENO)) pipe.AddObserver(&progress);
   pipe.AddObserver(&records);
   std::optional<debug::DebugRecorder> debug_recorder;
-  if (record_debug)
-    pipe.AddObserver(&debug_recorder.emplace(debug::DebugRecorderOptions{out_dir}));
+  if (record_debug) pipe.AddObserver(&debug_recorder.emplace(debug::DebugRecorderOptions{out_dir}));
 
   pipeline::RunOptions run;
   if (options.output.video && options.render.enabled)

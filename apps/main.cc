@@ -23,7 +23,8 @@ constexpr Command kCommands[] = {
     {"eval", arreg::cli::RunEval, "accuracy against ground truth: Dice, Hausdorff, feature error"},
     {"info", arreg::cli::RunInfo, "describe a mesh file (counts, volume, quality)"},
     {"run", arreg::cli::RunRun, "register a model to a video (overlay, records)"},
-    {"synth", arreg::cli::RunSynth, "synthetic benchmark scenes with ground truth (video, masks, cut)"},
+    {"synth", arreg::cli::RunSynth,
+     "synthetic benchmark scenes with ground truth (video, masks, cut)"},
 };
 
 void PrintUsage(std::FILE* out) {
