@@ -22,9 +22,10 @@ void MechanicsStageOptions::Check() const {
                     "must be finite");
   for (int v : fixed_vertices)
     ARREG_CHECK_INPUT(v >= 0, "", "mechanics.fixed_vertices", "indices must be >= 0, got ", v);
-  ARREG_CHECK_INPUT(linear_solver == "cholmod" || linear_solver == "cg", "",
-                    "mechanics.linear_solver", "must be \"cholmod\" or \"cg\", got \"",
-                    linear_solver, "\"");
+  ARREG_CHECK_INPUT(
+      linear_solver == "cholmod-pcg" || linear_solver == "cholmod" || linear_solver == "cg", "",
+      "mechanics.linear_solver", "must be \"cholmod-pcg\", \"cholmod\" or \"cg\", got \"",
+      linear_solver, "\"");
 }
 
 void CuttingStageOptions::Check() const {
@@ -107,7 +108,7 @@ void ReadMechanics(const Scene& scene, MechanicsStageOptions* o) {
   r.Optional("rayleigh_stiffness_s", &o->rayleigh_stiffness_s);
   r.Optional("gravity_mm_per_s2", &o->gravity_mm_per_s2);
   r.Optional("fixed_vertices", &o->fixed_vertices);
-  r.OptionalChoice("linear_solver", {"cholmod", "cg"}, &o->linear_solver);
+  r.OptionalChoice("linear_solver", {"cholmod-pcg", "cholmod", "cg"}, &o->linear_solver);
   r.Finish();
 }
 

@@ -34,7 +34,10 @@ struct MechanicsStageOptions {
   Eigen::Vector3d gravity_mm_per_s2 = Eigen::Vector3d::Zero();
   // Model vertices held at their frame-0 position (indices into the model mesh); default none.
   std::vector<int> fixed_vertices;
-  std::string linear_solver = "cholmod";  // "cholmod" (default) or "cg"
+  // "cholmod-pcg" (default: CG preconditioned by the CHOLMOD factor of an earlier
+  // frame's matrix, refactorised when CG slows down), "cholmod" (exact, refactorised
+  // every step) or "cg" (block-Jacobi preconditioned).
+  std::string linear_solver = "cholmod-pcg";
   void Check() const;
 };
 

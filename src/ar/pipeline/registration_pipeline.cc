@@ -191,9 +191,10 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   io.rayleigh_stiffness_beta = o.mechanics.rayleigh_stiffness_s >= 0
                                    ? o.mechanics.rayleigh_stiffness_s
                                    : scene.material.rayleigh_stiffness_s;
-  io.linear_solver.type = o.mechanics.linear_solver == "cg"
-                              ? mechanics::LinearSolverType::kConjugateGradient
-                              : mechanics::LinearSolverType::kCholmod;
+  io.linear_solver.type =
+      o.mechanics.linear_solver == "cg"        ? mechanics::LinearSolverType::kConjugateGradient
+      : o.mechanics.linear_solver == "cholmod" ? mechanics::LinearSolverType::kCholmod
+                                               : mechanics::LinearSolverType::kCholmodPcg;
   mechanics::ImplicitEulerIntegrator integrator(io);
 
   SurfaceMesh surface = ExtractBoundary(state.CurrentMesh());
