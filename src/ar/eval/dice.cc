@@ -26,13 +26,8 @@ DiceCounts ComputeDice(const cv::Mat& mask_a, const cv::Mat& mask_b) {
 }
 
 render::RasterCamera RasterCameraFor(const PinholeCamera& camera) {
-  render::RasterCamera raster;
-  raster.width = camera.width;
-  raster.height = camera.height;
-  raster.fx = camera.fx;
-  raster.fy = camera.fy;
-  raster.cx = camera.cx;
-  raster.cy = camera.cy;
+  // PointsForRaster gives camera-frame points, so the pose is the identity.
+  render::RasterCamera raster = render::ToRasterCamera(camera);
   raster.camera_from_world = Eigen::Isometry3d::Identity();
   return raster;
 }

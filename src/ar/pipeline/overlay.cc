@@ -9,18 +9,6 @@
 
 namespace arreg::pipeline {
 
-render::RasterCamera ToRasterCamera(const PinholeCamera& camera) {
-  render::RasterCamera r;
-  r.width = camera.width;
-  r.height = camera.height;
-  r.fx = camera.fx;
-  r.fy = camera.fy;
-  r.cx = camera.cx;
-  r.cy = camera.cy;
-  r.camera_from_world = camera.camera_from_world;
-  return r;
-}
-
 OverlayRenderer::OverlayRenderer(const PinholeCamera& camera, const RenderStageOptions& options)
     : camera_(camera), raster_(ToRasterCamera(camera)), options_(options) {
   options_.Check();

@@ -13,9 +13,9 @@
 
 namespace arreg::pipeline {
 
-// The rasterizer's distortion-free camera for a PinholeCamera. Lens distortion is not
-// applied: the overlay of a distorted camera is drawn as its pinhole part (see docs/pipeline.md).
-render::RasterCamera ToRasterCamera(const PinholeCamera& camera);
+// The overlay of a camera with lens distortion is drawn with its pinhole part
+// (render::ToRasterCamera; see docs/pipeline.md).
+using render::ToRasterCamera;
 
 struct OverlayStructure {
   const RowMatX3d* vertices_mm = nullptr;            // (#V x 3) world

@@ -15,6 +15,18 @@ void RasterCamera::Check() const {
   ARREG_CHECK_INPUT(near_mm > 0, "", "camera.near_mm", "near plane must be positive");
 }
 
+RasterCamera ToRasterCamera(const PinholeCamera& camera) {
+  RasterCamera raster;
+  raster.width = camera.width;
+  raster.height = camera.height;
+  raster.fx = camera.fx;
+  raster.fy = camera.fy;
+  raster.cx = camera.cx;
+  raster.cy = camera.cy;
+  raster.camera_from_world = camera.camera_from_world;
+  return raster;
+}
+
 RenderTarget::RenderTarget(const RasterCamera& camera, int supersampling)
     : camera_(camera), ss_(supersampling) {
   camera.Check();

@@ -9,6 +9,7 @@
 #include <opencv2/core.hpp>
 #include <vector>
 
+#include "core/camera.h"
 #include "core/mesh.h"
 
 namespace arreg::render {
@@ -26,6 +27,11 @@ struct RasterCamera {
 
   void Check() const;
 };
+
+// The rasterizer's distortion-free camera for a PinholeCamera (same size,
+// intrinsics and pose). Lens distortion is not applied: callers that need it
+// move the vertices to their distorted positions first (eval::PointsForRaster).
+RasterCamera ToRasterCamera(const PinholeCamera& camera);
 
 // What a fragment shader sees for one covered sample.
 struct Fragment {

@@ -47,18 +47,6 @@ std::string FrameName(int frame, const char* ext) {
   return buf;
 }
 
-render::RasterCamera ToRasterCamera(const PinholeCamera& c) {
-  render::RasterCamera r;
-  r.width = c.width;
-  r.height = c.height;
-  r.fx = c.fx;
-  r.fy = c.fy;
-  r.cx = c.cx;
-  r.cy = c.cy;
-  r.camera_from_world = c.camera_from_world;
-  return r;
-}
-
 // Compact surface (only referenced vertices) of `faces` over `positions`.
 SurfaceMesh CompactSurface(const RowMatX3d& positions, const RowMatX3i& faces) {
   SurfaceMesh mesh;
@@ -221,7 +209,7 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
   std::vector<bool> internal_tet(s.truth.labels.size());
   for (int t = 0; t < s.truth.labels.size(); ++t) internal_tet[t] = s.truth.labels[t] == 2;
 
-  const render::RasterCamera raster_camera = ToRasterCamera(s.camera);
+  const render::RasterCamera raster_camera = render::ToRasterCamera(s.camera);
   TissueTextureOptions texture_options;
   texture_options.seed = options.seed;
   const TissueTexture texture(texture_options);
