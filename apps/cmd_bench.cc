@@ -5,6 +5,7 @@
 
 #include "commands.h"
 #include "core/error.h"
+#include "option_parser.h"
 
 namespace arreg::cli {
 
@@ -50,7 +51,7 @@ int RunBench(int argc, char** argv) {
   }
   for (const auto& b : kBenches)
     if (b.name && what == b.name) return b.run(argc - 1, argv + 1);
-  throw Error("", "bench '" + what + "'", "unknown benchmark (see arreg bench --help)");
+  throw UsageError("bench '" + what + "'", "unknown benchmark (see arreg bench --help)");
 }
 
 }  // namespace arreg::cli

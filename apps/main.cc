@@ -7,6 +7,7 @@
 #include "commands.h"
 #include "core/error.h"
 #include "core/version.h"
+#include "option_parser.h"
 
 namespace {
 
@@ -58,6 +59,9 @@ int main(int argc, char** argv) {
     try {
       // Subcommands see argv shifted by one: argv[0] = "arreg <name>".
       return c.run(argc - 1, argv + 1);
+    } catch (const arreg::cli::UsageError& e) {
+      std::fprintf(stderr, "arreg %s: usage error: %s\n", c.name, e.what());
+      return 2;
     } catch (const arreg::Error& e) {
       std::fprintf(stderr, "arreg %s: error: %s\n", c.name, e.what());
       return 1;

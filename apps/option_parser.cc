@@ -16,7 +16,7 @@ int ParseIntValue(const std::string& name, const std::string& text) {
     if (used != text.size() || v < INT32_MIN || v > INT32_MAX) throw std::invalid_argument("");
     return static_cast<int>(v);
   } catch (const std::exception&) {
-    throw Error("", "--" + name, "expected an integer, got '" + text + "'");
+    throw UsageError("--" + name, "expected an integer, got '" + text + "'");
   }
 }
 
@@ -27,7 +27,7 @@ double ParseDoubleValue(const std::string& name, const std::string& text) {
     if (used != text.size() || !std::isfinite(v)) throw std::invalid_argument("");
     return v;
   } catch (const std::exception&) {
-    throw Error("", "--" + name, "expected a finite number, got '" + text + "'");
+    throw UsageError("--" + name, "expected a finite number, got '" + text + "'");
   }
 }
 
@@ -113,11 +113,11 @@ bool OptionParser::Parse(int argc, char** argv, int first) {
       Option* opt = nullptr;
       for (auto& o : options_)
         if (o.name == name) opt = &o;
-      if (!opt) throw Error("", "--" + name, "unknown option (see --help)");
+      if (!opt) throw UsageError("--" + name, "unknown option (see --help)");
       if (opt->is_flag) {
-        if (has_inline_value) throw Error("", "--" + name, "is a flag and takes no value");
+        if (has_inline_value) throw UsageError("--" + name, "is a flag and takes no value");
       } else if (!has_inline_value) {
-        if (i + 1 >= argc) throw Error("", "--" + name, "expects a value " + opt->metavar);
+        if (i + 1 >= argc) throw UsageError("--" + name, "expects a value " + opt->metavar);
         value = argv[++i];
       }
       opt->set(value);
@@ -125,15 +125,15 @@ bool OptionParser::Parse(int argc, char** argv, int first) {
       continue;
     }
     if (next_positional >= positionals_.size())
-      throw Error("", "argument '" + arg + "'", "unexpected (see --help)");
+      throw UsageError("argument '" + arg + "'", "unexpected (see --help)");
     *positionals_[next_positional++].target = arg;
   }
   for (size_t p = next_positional; p < positionals_.size(); ++p)
     if (positionals_[p].required)
-      throw Error("", positionals_[p].metavar, "missing required argument (see --help)");
+      throw UsageError(positionals_[p].metavar, "missing required argument (see --help)");
   for (const auto& o : options_)
     if (o.required && !Given(o.name))
-      throw Error("", "--" + o.name, "missing required option (see --help)");
+      throw UsageError("--" + o.name, "missing required option (see --help)");
   return true;
 }
 

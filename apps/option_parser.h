@@ -10,7 +10,16 @@
 #include <string>
 #include <vector>
 
+#include "core/error.h"
+
 namespace arreg::cli {
+
+// Wrong command-line usage (unknown option, missing or malformed value): main()
+// exits with code 2 for these and 1 for bad input files.
+class UsageError : public Error {
+ public:
+  UsageError(const std::string& where, const std::string& what) : Error("", where, what) {}
+};
 
 class OptionParser {
  public:
@@ -34,7 +43,7 @@ class OptionParser {
   void SetEpilog(std::string epilog) { epilog_ = std::move(epilog); }
 
   // Parses argv[first..argc). Returns false when --help was asked for (the
-  // help was printed to stdout). Throws arreg::Error on bad usage.
+  // help was printed to stdout). Throws UsageError on bad usage.
   bool Parse(int argc, char** argv, int first = 1);
 
   std::string Help() const;

@@ -1,0 +1,98 @@
+// The command-line contract: exit 0 for help and version, 2 for wrong usage,
+// 1 for bad input, and a single error line that names what is wrong.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <string>
+
+#include "core/file_util.h"
+
+namespace {
+
+struct Result {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr together
+};
+
+Result RunArreg(const std::string& args) {
+  const std::string binary = std::string(ARREG_BINARY_DIR) + "/apps/arreg";
+  Result r;
+  FILE* pipe = popen((binary + " " + args + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  std::array<char, 4096> buffer{};
+  while (fgets(buffer.data(), buffer.size(), pipe)) r.output += buffer.data();
+  const int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+int CountLines(const std::string& text) {
+  int lines = 0;
+  for (char c : text) lines += c == '\n';
+  return lines;
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!arreg::FileExists(std::string(ARREG_BINARY_DIR) + "/apps/arreg"))
+      GTEST_SKIP() << "arreg binary not built";
+  }
+};
+
+TEST_F(Cli, HelpListsEveryCommandAndExitsZero) {
+  const Result r = RunArreg("--help");
+  EXPECT_EQ(r.exit_code, 0);
+  for (const char* command : {"info", "synth", "run", "eval", "debug", "bench"})
+    EXPECT_NE(r.output.find(std::string("  ") + command + " "), std::string::npos) << command;
+}
+
+TEST_F(Cli, EverySubcommandHasHelp) {
+  for (const char* command : {"info", "synth", "run", "eval", "debug", "bench"}) {
+    const Result r = RunArreg(std::string(command) + " --help");
+    EXPECT_EQ(r.exit_code, 0) << command;
+    EXPECT_NE(r.output.find("usage: arreg " + std::string(command)), std::string::npos)
+        << command << ": " << r.output;
+  }
+}
+
+TEST_F(Cli, VersionPrintsTheProjectVersion) {
+  const Result r = RunArreg("--version");
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_EQ(r.output.rfind("arreg ", 0), 0u) << r.output;
+}
+
+TEST_F(Cli, WrongUsageExitsTwoWithOneLineNamingTheOption) {
+  Result r = RunArreg("run --no-such-option");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(CountLines(r.output), 1) << r.output;
+  EXPECT_NE(r.output.find("--no-such-option"), std::string::npos) << r.output;
+
+  r = RunArreg("no-such-command");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("no-such-command"), std::string::npos) << r.output;
+
+  r = RunArreg("bench no-such-benchmark");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("no-such-benchmark"), std::string::npos) << r.output;
+
+  r = RunArreg("info");
+  EXPECT_EQ(r.exit_code, 2) << "missing positional argument";
+}
+
+TEST_F(Cli, BadInputExitsOneWithOneLineNamingTheFile) {
+  const std::string missing = std::string(ARREG_BINARY_DIR) + "/no/such/mesh.msh";
+  Result r = RunArreg("info " + missing);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(CountLines(r.output), 1) << r.output;
+  EXPECT_NE(r.output.find(missing), std::string::npos) << r.output;
+
+  r = RunArreg("run --scene " + std::string(ARREG_BINARY_DIR) + "/no/scene.json --out " +
+               std::string(ARREG_BINARY_DIR) + "/test_scratch/cli_run");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("scene.json"), std::string::npos) << r.output;
+}
+
+}  // namespace
