@@ -1,4 +1,5 @@
 #include "tracking/surf.h"
+#include "test_images.h"
 
 #include <gtest/gtest.h>
 
@@ -29,21 +30,7 @@ cv::Mat GaussianBlob(int size, cv::Point2d centre, double sigma, double amplitud
 
 // Band-limited random texture (blurred noise at three scales), mean 128, std ~40.
 cv::Mat Texture(int rows, int cols, unsigned seed) {
-  cv::RNG rng(seed);
-  cv::Mat sum = cv::Mat::zeros(rows, cols, CV_32F);
-  for (double sigma : {2.0, 4.0, 8.0}) {
-    cv::Mat noise(rows, cols, CV_32F);
-    rng.fill(noise, cv::RNG::NORMAL, 0, 1);
-    cv::GaussianBlur(noise, noise, cv::Size(), sigma, sigma, cv::BORDER_REFLECT);
-    cv::Scalar mean, stddev;
-    cv::meanStdDev(noise, mean, stddev);
-    sum += noise / stddev[0];
-  }
-  cv::Scalar mean, stddev;
-  cv::meanStdDev(sum, mean, stddev);
-  cv::Mat out;
-  sum.convertTo(out, CV_8U, 40.0 / stddev[0], 128 - 40.0 * mean[0] / stddev[0]);
-  return out;
+  return testing::BandLimitedTexture(rows, cols, seed, 128.0, 40.0);
 }
 
 std::vector<SurfKeypoint> Detect(const cv::Mat& gray, cv::Mat* descriptors = nullptr,

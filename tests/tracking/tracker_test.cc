@@ -1,4 +1,5 @@
 #include "tracking/tracker.h"
+#include "test_images.h"
 
 #include <gtest/gtest.h>
 
@@ -18,21 +19,7 @@ namespace {
 // Band-limited random texture (blurred noise at three scales), mean 110, std
 // 30: like tissue, it stays below highlight brightness (240) but for a rare pixel.
 cv::Mat Texture(int rows, int cols, unsigned seed) {
-  cv::RNG rng(seed);
-  cv::Mat sum = cv::Mat::zeros(rows, cols, CV_32F);
-  for (double sigma : {2.0, 4.0, 8.0}) {
-    cv::Mat noise(rows, cols, CV_32F);
-    rng.fill(noise, cv::RNG::NORMAL, 0, 1);
-    cv::GaussianBlur(noise, noise, cv::Size(), sigma, sigma, cv::BORDER_REFLECT);
-    cv::Scalar mean, stddev;
-    cv::meanStdDev(noise, mean, stddev);
-    sum += noise / stddev[0];
-  }
-  cv::Scalar mean, stddev;
-  cv::meanStdDev(sum, mean, stddev);
-  cv::Mat out;
-  sum.convertTo(out, CV_8U, 30.0 / stddev[0], 110 - 30.0 * mean[0] / stddev[0]);
-  return out;
+  return testing::BandLimitedTexture(rows, cols, seed, 110.0, 30.0);
 }
 
 cv::Point2f Apply(const cv::Matx23d& m, cv::Point2f p) {
