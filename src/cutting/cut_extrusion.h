@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "core/geometry.h"
 #include "core/mesh.h"
 
 namespace arreg::cutting {
@@ -41,9 +42,8 @@ CutExtrusionOptions CutExtrusionCovering(const std::vector<Eigen::Vector3d>& pol
                                          const Eigen::Vector3d& camera_centre_mm,
                                          const RowMatX3d& object_points_mm, double margin_mm);
 
-// Closest point on triangle (a, b, c) to p (Ericson, Real-Time Collision Detection 5.1.5).
-Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
-                                       const Eigen::Vector3d& b, const Eigen::Vector3d& c);
+// Closest point on a triangle (core/geometry.h).
+using ::arreg::ClosestPointOnTriangle;
 
 // Distance [mm] from p to the surface (infinity for a surface without faces).
 double DistanceToSurface(const SurfaceMesh& surface, const Eigen::Vector3d& p);

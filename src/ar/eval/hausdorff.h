@@ -6,14 +6,13 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/geometry.h"
 #include "core/mesh.h"
 
 namespace arreg::eval {
 
-// Closest point to `p` on triangle (a, b, c) (Ericson, Real-Time Collision
-// Detection, 5.1.5): exact, Voronoi-region based, valid for degenerate triangles.
-Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
-                                       const Eigen::Vector3d& b, const Eigen::Vector3d& c);
+// Closest point on a triangle (core/geometry.h).
+using ::arreg::ClosestPointOnTriangle;
 
 // Answers nearest-point queries on a triangle mesh: an axis-aligned bounding box
 // hierarchy over the faces (median split on the longest axis, <= 4 faces per
