@@ -10,6 +10,7 @@
 #include <unordered_map>
 
 #include "ar/lift/lifting.h"
+#include "ar/pipeline/cut_handler.h"
 #include "ar/pipeline/overlay.h"
 #include "ar/render/rasterizer.h"
 #include "core/error.h"
@@ -18,10 +19,6 @@
 #include "core/log.h"
 #include "core/mesh_io.h"
 #include "core/mesh_ops.h"
-#include "cutting/cut_extrusion.h"
-#include "cutting/cut_surface.h"
-#include "cutting/mechanics_update.h"
-#include "cutting/tet_cutter.h"
 #include "mechanics/elastic_energy.h"
 #include "mechanics/embedding.h"
 #include "mechanics/integrator.h"
@@ -263,6 +260,10 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
 
   // Cut detection over the attached features (detector ids = feature rows).
   std::optional<cutting::CutDetector> detector;
+  std::optional<CutHandler> cut_handler;
+  const CutTargets cut_targets{&state,         &springs,          &features,
+                               &attach_points, &feature_embedding, &internal,
+                               &internal_rest, &internal_embedding};
   cutting::DetectionResult detection;
   const bool topology = o.cutting.enabled;
   if (topology) {
@@ -273,6 +274,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     for (size_t i = 0; i < ids.size(); ++i) p0.row(i) = attach_points.row(ids[i]);
     detector.emplace(o.cutting.detector);
     detector->Initialize(p0, ids);
+    cut_handler.emplace(o.cutting, state);
   }
 
   OverlayRenderer overlay(camera, o.render);
@@ -397,65 +399,15 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       }
       detector->Update(ff, &detection);
       if (detection.segment_added && detection.extended_polyline_mm.size() >= 2) {
-        CutEvent ev;
-        ev.frame = frame;
-        ev.polyline_points = static_cast<int>(detection.extended_polyline_mm.size());
-        try {
-          const Eigen::Vector3d eye = camera.CenterInWorld();
-          const cutting::CutExtrusionOptions ext =
-              cutting::CutExtrusionCovering(detection.extended_polyline_mm, eye, state.positions(),
-                                            o.cutting.extrusion_margin_mm);
-          SurfaceMesh s = cutting::ExtrudeCutPolyline(detection.extended_polyline_mm, eye, ext);
-          const cutting::CutSurface cs{s.vertices, s.faces};
-          cutting::CuttableMesh cuttable(state.RestMesh(), state.positions(), state.velocities());
-          cutting::CutOptions co;
-          co.method = o.cutting.method == "bielser" ? cutting::RemeshMethod::kBielser
-                                                    : cutting::RemeshMethod::kFlips;
-          co.snap_epsilon = 0.0;  // MechanicalState keeps rest positions: no snapping
-          cutting::CutChange change;
-          const cutting::CutSummary cut = cuttable.Cut(cs, co, &change);
-          ev.message = cut.message;
-          if (cut.status == cutting::CutStatus::kCut) {
-            ev.status = "cut";
-            const int v_before = state.num_vertices(), t_before = state.num_tetrahedra();
-            const std::vector<int> new_elements = cutting::ApplyCutChange(change, &state);
-            cutting::ReembedAfterCut(change, new_elements, state, attach_points,
-                                     &feature_embedding);
-            for (int r = 0; r < nf; ++r)
-              if (features[r].spring >= 0)
-                springs.SetAnchor(features[r].spring, feature_embedding[r]);
-            for (size_t k = 0; k < internal.size(); ++k) {
-              cutting::ReembedAfterCut(change, new_elements, state, internal_rest[k],
-                                       &internal_embedding[k]);
-              const RowMatX3d current =
-                  internal_embedding[k].Positions(state.positions(), state.tetrahedra());
-              const RowMatX3i kept =
-                  cutting::RemoveTrianglesCrossing(current, internal[k].faces, cs);
-              ev.internal_triangles_removed +=
-                  static_cast<int>(internal[k].faces.rows() - kept.rows());
-              internal[k].faces = kept;
-            }
-            feature_embedding.Positions(state.positions(), state.tetrahedra(), &anchors);
-            for (int idx : cutting::PointsWithinMargin(s, anchors, o.cutting.spring_margin_mm)) {
-              FeatureView& v = features[idx];
-              if (!v.spring_active) continue;
-              springs.Remove(v.spring);
-              v.spring_active = false;
-              ++ev.springs_removed;
-            }
-            ev.new_vertices = state.num_vertices() - v_before;
-            ev.new_tetrahedra = state.num_tetrahedra() - t_before;
-            surface = ExtractBoundary(state.CurrentMesh());
-            ++summary.cuts_applied;
-          } else {
-            ev.status = cut.status == cutting::CutStatus::kNoCrossing ? "no-crossing" : "rejected";
-          }
-          cut_surface = std::move(s);
-        } catch (const Error& e) {
-          ev.status = "failed";
-          ev.message = e.what();
-          ARREG_LOG_WARNING("run: frame ", frame, ": cut not applied: ", e.what());
+        SurfaceMesh s;
+        const CutEvent ev = cut_handler->Apply(frame, detection.extended_polyline_mm,
+                                               camera.CenterInWorld(), cut_targets, &s);
+        if (ev.status == "cut") {
+          feature_embedding.Positions(state.positions(), state.tetrahedra(), &anchors);
+          surface = ExtractBoundary(state.CurrentMesh());
+          ++summary.cuts_applied;
         }
+        if (ev.status != "failed") cut_surface = std::move(s);
         events.push_back(ev);
         ++summary.cut_events;
       }

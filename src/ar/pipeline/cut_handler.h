@@ -1,0 +1,60 @@
+// The application half of the pipeline's cutting stage (thesis 7.5.3): one detected cut
+// becomes a remeshing of the model that mechanics, features and internal structures follow.
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <vector>
+
+#include "ar/pipeline/frame_observer.h"
+#include "ar/pipeline/pipeline_options.h"
+#include "core/mesh.h"
+#include "cutting/tet_cutter.h"
+#include "mechanics/embedding.h"
+#include "mechanics/mechanical_state.h"
+#include "mechanics/spring_energy.h"
+
+namespace arreg::pipeline {
+
+// What a cut updates; owned by the pipeline, valid during CutHandler::Apply.
+struct CutTargets {
+  mechanics::MechanicalState* state = nullptr;
+  mechanics::SpringEnergy* springs = nullptr;
+  std::vector<FeatureView>* features = nullptr;  // one per feature row
+  // (#features x 3) frame-0 attachment points [mm], in the rest frame of `state`.
+  const RowMatX3d* features_rest_mm = nullptr;
+  mechanics::EmbeddedPoints* feature_embedding = nullptr;    // one point per feature row
+  std::vector<SurfaceMesh>* internal = nullptr;              // faces lose triangles crossing S
+  const std::vector<RowMatX3d>* internal_rest_mm = nullptr;  // rest vertices per structure
+  std::vector<mechanics::EmbeddedPoints>* internal_embedding = nullptr;
+};
+
+// Keeps one cuttable topology (cutting::CuttableMesh, numbered like the mechanical state)
+// across the events of a run, so a partial cut's open front is continued by the next event
+// and the front's free vertices are moved onto S instead of the front being remeshed again.
+class CutHandler {
+ public:
+  // `state` is the model before any cut (positive elements in its rest configuration).
+  // Throws arreg::Error for bad options or a non-positive rest element.
+  CutHandler(const CuttingStageOptions& options, const mechanics::MechanicalState& state);
+  ~CutHandler();
+
+  // One detected cut in frame `frame`: extrudes `polyline_mm` (world, mm) along the rays from
+  // `eye_mm` into S, cuts the model, applies the change to the mechanical state, re-embeds
+  // features and internal structures, deletes internal triangles crossing S (eq. 7.12) and
+  // removes the springs within options.spring_margin_mm of S. The returned event says what
+  // happened ("cut", "no-crossing", "rejected", or "failed" with the error text; the targets
+  // are then unchanged). `cut_surface` (optional) receives S.
+  CutEvent Apply(int frame, const std::vector<Eigen::Vector3d>& polyline_mm,
+                 const Eigen::Vector3d& eye_mm, const CutTargets& targets,
+                 SurfaceMesh* cut_surface = nullptr);
+
+  // The persistent topology (rest/current positions as of the last event).
+  const cutting::CuttableMesh& mesh() const { return *mesh_; }
+
+ private:
+  CuttingStageOptions options_;
+  std::unique_ptr<cutting::CuttableMesh> mesh_;
+};
+
+}  // namespace arreg::pipeline
