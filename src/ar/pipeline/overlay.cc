@@ -10,9 +10,12 @@
 namespace arreg::pipeline {
 
 OverlayRenderer::OverlayRenderer(const PinholeCamera& camera, const RenderStageOptions& options)
-    : camera_(camera), raster_(ToRasterCamera(camera)), options_(options) {
+    : camera_(camera),
+      raster_(ToRasterCamera(camera)),
+      options_(options),
+      internal_layer_(raster_),
+      organ_layer_(raster_) {
   options_.Check();
-  raster_.Check();
   if (!camera.distortion.IsZero())
     ARREG_LOG_WARNING(
         "overlay: the camera has lens distortion; the overlay is drawn with its pinhole part "
@@ -29,104 +32,195 @@ cv::Point2f ProjectPinhole(const render::RasterCamera& c, const Eigen::Vector3d&
   return {static_cast<float>(c.fx * p.x() / z + c.cx), static_cast<float>(c.fy * p.y() / z + c.cy)};
 }
 
-// Blinn-Phong evaluated once per vertex (Gouraud): the per-sample shader then only
-// interpolates, which keeps the supersampled overlay cheap.
-std::vector<Eigen::Vector3f> ShadeVertices(const render::RasterCamera& c, const RowMatX3d& vertices,
-                                           const RowMatX3i& faces, const Eigen::Vector3f& albedo) {
-  const RowMatX3d normals = render::VertexNormals(vertices, faces);
-  const render::ShadingOptions shading;
-  const Eigen::Matrix3d r = c.camera_from_world.linear();
-  std::vector<Eigen::Vector3f> colors(vertices.rows());
-  render::Fragment f;
-  for (int v = 0; v < vertices.rows(); ++v) {
-    f.point_in_camera = c.camera_from_world * vertices.row(v).transpose();
-    const Eigen::Vector3d n = r * normals.row(v).transpose();
-    f.normal_in_camera = n.squaredNorm() > 0 ? n.normalized() : Eigen::Vector3d(0, 0, -1);
-    f.front_facing = true;
-    colors[v] = render::ShadeBlinnPhong(albedo, f, shading);
-  }
-  return colors;
+// Grows the pixel bounds by the projections of the vertices used by `faces`; false when one is
+// behind the near plane (its projection bounds nothing).
+bool GrowBounds(const render::RasterCamera& c, const RowMatX3d& vertices, const RowMatX3i& faces,
+                double* lo_u, double* lo_v, double* hi_u, double* hi_v) {
+  for (int f = 0; f < faces.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      bool front = true;
+      const cv::Point2f q = ProjectPinhole(c, vertices.row(faces(f, k)).transpose(), &front);
+      if (!front) return false;
+      *lo_u = std::min(*lo_u, double(q.x));
+      *hi_u = std::max(*hi_u, double(q.x));
+      *lo_v = std::min(*lo_v, double(q.y));
+      *hi_v = std::max(*hi_v, double(q.y));
+    }
+  return true;
 }
 
-void DrawGouraud(const RowMatX3d& vertices, const RowMatX3i& faces, const Eigen::Vector3f& albedo,
-                 const render::DrawOptions& draw, render::RenderTarget* target) {
-  const std::vector<Eigen::Vector3f> colors =
-      ShadeVertices(target->camera(), vertices, faces, albedo);
-  target->Draw(
-      vertices, faces, RowMatX3d(),
-      [&](const render::Fragment& fr) {
-        return Eigen::Vector3f(fr.barycentric.cast<float>()[0] * colors[faces(fr.face, 0)] +
-                               fr.barycentric.cast<float>()[1] * colors[faces(fr.face, 1)] +
-                               fr.barycentric.cast<float>()[2] * colors[faces(fr.face, 2)]);
-      },
-      draw);
+bool Visible(const OverlayStructure& s) {
+  // Opacity 0 hides a structure (the rasterizers only blend opacities in (0, 1]).
+  return s.vertices_mm != nullptr && s.faces != nullptr && s.faces->rows() > 0 && s.opacity > 0;
 }
 
 }  // namespace
 
+void OverlayRenderer::ShadeVertices(const RowMatX3d& vertices, const RowMatX3i& faces,
+                                    const Eigen::Vector3f& albedo) {
+  // Area-weighted vertex normals (as render::VertexNormals), into kept buffers.
+  normals_.setZero(vertices.rows(), 3);
+  for (int f = 0; f < faces.rows(); ++f) {
+    const Eigen::Vector3d a = vertices.row(faces(f, 0)), b = vertices.row(faces(f, 1)),
+                          c = vertices.row(faces(f, 2));
+    const Eigen::RowVector3d n = (b - a).cross(c - a).transpose();  // length = 2 x area
+    for (int k = 0; k < 3; ++k) normals_.row(faces(f, k)) += n;
+  }
+  const render::ShadingOptions shading;
+  const Eigen::Matrix3d r = raster_.camera_from_world.linear();
+  vertex_rgb_.resize(vertices.rows(), 3);
+  render::Fragment fr;
+  fr.front_facing = true;
+  for (int v = 0; v < vertices.rows(); ++v) {
+    fr.point_in_camera = raster_.camera_from_world * vertices.row(v).transpose();
+    const Eigen::Vector3d n = r * normals_.row(v).transpose();
+    fr.normal_in_camera = n.squaredNorm() > 0 ? n.normalized() : Eigen::Vector3d(0, 0, -1);
+    vertex_rgb_.row(v) = render::ShadeBlinnPhong(albedo, fr, shading).transpose();
+  }
+}
+
+void OverlayRenderer::RenderCoverage(const render::PixelRect& box,
+                                     const RowMatX3d& organ_vertices_mm,
+                                     const RowMatX3i& organ_faces,
+                                     const std::vector<OverlayStructure>& internal, cv::Mat* bgr) {
+  internal_layer_.Clear(box);
+  organ_layer_.Clear(box);
+  bool any_internal = false;
+  for (const OverlayStructure& s : internal) {
+    if (!Visible(s)) continue;
+    ShadeVertices(*s.vertices_mm, *s.faces, s.color.cast<float>());
+    render::CoverageDrawOptions draw;
+    draw.opacity = static_cast<float>(std::min(1.0, s.opacity));
+    any_internal =
+        internal_layer_.Draw(*s.vertices_mm, *s.faces, vertex_rgb_, draw) > 0 || any_internal;
+  }
+  bool any_organ = false;
+  if (options_.organ_opacity > 0) {
+    ShadeVertices(organ_vertices_mm, organ_faces, options_.organ_color.cast<float>());
+    render::CoverageDrawOptions draw;
+    draw.opacity = static_cast<float>(std::min(1.0, options_.organ_opacity));
+    draw.cull_back_faces = true;  // the near side only: structures behind it show through
+    any_organ = organ_layer_.Draw(organ_vertices_mm, organ_faces, vertex_rgb_, draw) > 0;
+  }
+  if (!any_internal && !any_organ) return;
+  // Composite: the internal layer over the frame, the organ over both, unless a structure
+  // lies in front of the organ's surface (it pokes out), which then goes on top.
+  for (int y = box.y0; y < box.y1; ++y) {
+    auto* row = bgr->ptr<cv::Vec3b>(y);
+    for (int x = box.x0; x < box.x1; ++x) {
+      const float ai = internal_layer_.alpha(x, y), ao = organ_layer_.alpha(x, y);
+      if (ai == 0 && ao == 0) continue;
+      cv::Vec3b& px = row[x];
+      Eigen::Vector3f rgb(px[2] * (1.0f / 255), px[1] * (1.0f / 255), px[0] * (1.0f / 255));
+      const bool structure_on_top =
+          ai > 0 && ao > 0 &&
+          internal_layer_.inverse_depth(x, y) > organ_layer_.inverse_depth(x, y);
+      if (structure_on_top) {
+        rgb += ao * (organ_layer_.rgb(x, y) - rgb);
+        rgb += ai * (internal_layer_.rgb(x, y) - rgb);
+      } else {
+        if (ai > 0) rgb += ai * (internal_layer_.rgb(x, y) - rgb);
+        if (ao > 0) rgb += ao * (organ_layer_.rgb(x, y) - rgb);
+      }
+      for (int c = 0; c < 3; ++c)
+        px[2 - c] = static_cast<uchar>(255.0f * std::clamp(rgb[c], 0.0f, 1.0f) + 0.5f);
+    }
+  }
+}
+
+void OverlayRenderer::RenderSupersampled(const render::PixelRect& box,
+                                         const RowMatX3d& organ_vertices_mm,
+                                         const RowMatX3i& organ_faces,
+                                         const std::vector<OverlayStructure>& internal,
+                                         cv::Mat* bgr) const {
+  render::RasterCamera crop = raster_;
+  crop.width = box.width();
+  crop.height = box.height();
+  crop.cx -= box.x0;
+  crop.cy -= box.y0;
+  render::RenderTarget target(crop, options_.supersampling);
+  // The frame under the box as linear RGB floats, read once per pixel, not per sample.
+  const cv::Rect roi(box.x0, box.y0, crop.width, crop.height);
+  cv::Mat rgb;
+  (*bgr)(roi).convertTo(rgb, CV_32FC3, 1.0 / 255.0);
+  target.ClearWith([&](double u, double v) {
+    // Sample centres lie in [-0.5, size - 0.5): rounding picks the pixel that holds them.
+    const int x = std::min(static_cast<int>(u + 0.5), crop.width - 1);
+    const int y = std::min(static_cast<int>(v + 0.5), crop.height - 1);
+    const cv::Vec3f& p = rgb.at<cv::Vec3f>(y, x);
+    return Eigen::Vector3f(p[2], p[1], p[0]);
+  });
+  auto draw_gouraud = [&](const RowMatX3d& vertices, const RowMatX3i& faces,
+                          const Eigen::Vector3f& albedo, const render::DrawOptions& draw) {
+    const RowMatX3d normals = render::VertexNormals(vertices, faces);
+    const render::ShadingOptions shading;
+    const Eigen::Matrix3d r = crop.camera_from_world.linear();
+    std::vector<Eigen::Vector3f> colors(vertices.rows());
+    render::Fragment f;
+    f.front_facing = true;
+    for (int v = 0; v < vertices.rows(); ++v) {
+      f.point_in_camera = crop.camera_from_world * vertices.row(v).transpose();
+      const Eigen::Vector3d n = r * normals.row(v).transpose();
+      f.normal_in_camera = n.squaredNorm() > 0 ? n.normalized() : Eigen::Vector3d(0, 0, -1);
+      colors[v] = render::ShadeBlinnPhong(albedo, f, shading);
+    }
+    target.Draw(
+        vertices, faces, RowMatX3d(),
+        [&](const render::Fragment& fr) {
+          const Eigen::Vector3f b = fr.barycentric.cast<float>();
+          return Eigen::Vector3f(b[0] * colors[faces(fr.face, 0)] +
+                                 b[1] * colors[faces(fr.face, 1)] +
+                                 b[2] * colors[faces(fr.face, 2)]);
+        },
+        draw);
+  };
+  for (const OverlayStructure& s : internal) {
+    if (!Visible(s)) continue;
+    render::DrawOptions draw;
+    draw.opacity = static_cast<float>(std::min(1.0, s.opacity));
+    draw.id = 2;
+    draw_gouraud(*s.vertices_mm, *s.faces, s.color.cast<float>(), draw);
+  }
+  if (options_.organ_opacity > 0) {
+    render::DrawOptions draw;
+    draw.opacity = static_cast<float>(std::min(1.0, options_.organ_opacity));
+    draw.cull_back_faces = true;  // the near side only: structures behind it show through
+    draw.id = 1;
+    draw_gouraud(organ_vertices_mm, organ_faces, options_.organ_color.cast<float>(), draw);
+  }
+  target.ResolveBgr().copyTo((*bgr)(roi));
+}
+
 void OverlayRenderer::Render(const RowMatX3d& organ_vertices_mm, const RowMatX3i& organ_faces,
                              const std::vector<OverlayStructure>& internal,
-                             const OverlayLayers& layers, cv::Mat* bgr) const {
+                             const OverlayLayers& layers, cv::Mat* bgr) {
   ARREG_ASSERT(bgr != nullptr && bgr->type() == CV_8UC3 && bgr->cols == raster_.width &&
                    bgr->rows == raster_.height,
                "overlay: frame must be CV_8UC3 of the camera size");
-  // Bounding box of the projected organ (vertices used by faces); a vertex behind the near
-  // plane makes the whole image the box.
-  double lo_u = 1e300, lo_v = 1e300, hi_u = -1e300, hi_v = -1e300;
-  bool behind = false;
-  for (int f = 0; f < organ_faces.rows(); ++f)
-    for (int k = 0; k < 3; ++k) {
-      bool front = true;
-      const cv::Point2f q =
-          ProjectPinhole(raster_, organ_vertices_mm.row(organ_faces(f, k)).transpose(), &front);
-      if (!front) behind = true;
-      lo_u = std::min(lo_u, double(q.x));
-      hi_u = std::max(hi_u, double(q.x));
-      lo_v = std::min(lo_v, double(q.y));
-      hi_v = std::max(hi_v, double(q.y));
-    }
   if (organ_faces.rows() == 0) return;
-  int x0 = 0, y0 = 0, x1 = raster_.width - 1, y1 = raster_.height - 1;
-  if (!behind) {
-    x0 = std::max(0, static_cast<int>(std::floor(lo_u)) - 2);
-    y0 = std::max(0, static_cast<int>(std::floor(lo_v)) - 2);
-    x1 = std::min(raster_.width - 1, static_cast<int>(std::ceil(hi_u)) + 2);
-    y1 = std::min(raster_.height - 1, static_cast<int>(std::ceil(hi_v)) + 2);
+  // Bounding box of the projected organ and structures; a vertex behind the near plane makes
+  // the whole image the box.
+  double lo_u = 1e300, lo_v = 1e300, hi_u = -1e300, hi_v = -1e300;
+  bool bounded = GrowBounds(raster_, organ_vertices_mm, organ_faces, &lo_u, &lo_v, &hi_u, &hi_v);
+  for (const OverlayStructure& s : internal)
+    if (bounded && Visible(s))
+      bounded = GrowBounds(raster_, *s.vertices_mm, *s.faces, &lo_u, &lo_v, &hi_u, &hi_v);
+  render::PixelRect box{0, 0, raster_.width, raster_.height};
+  if (bounded) {
+    // Clamped in floating point first: a projection far off-screen must not overflow an int.
+    const auto clamp_px = [](double v, int hi) {
+      return static_cast<int>(std::clamp(v, -1.0, static_cast<double>(hi) + 1));
+    };
+    box.x0 = std::max(0, clamp_px(std::floor(lo_u), raster_.width) - 2);
+    box.y0 = std::max(0, clamp_px(std::floor(lo_v), raster_.height) - 2);
+    box.x1 = std::min(raster_.width, clamp_px(std::ceil(hi_u), raster_.width) + 3);
+    box.y1 = std::min(raster_.height, clamp_px(std::ceil(hi_v), raster_.height) + 3);
   }
-  if (x1 >= x0 && y1 >= y0) {
-    render::RasterCamera crop = raster_;
-    crop.width = x1 - x0 + 1;
-    crop.height = y1 - y0 + 1;
-    crop.cx -= x0;
-    crop.cy -= y0;
-    render::RenderTarget target(crop, options_.supersampling);
-    // The frame under the box as linear RGB floats, read once per pixel, not per sample.
-    cv::Mat rgb;
-    (*bgr)(cv::Rect(x0, y0, crop.width, crop.height)).convertTo(rgb, CV_32FC3, 1.0 / 255.0);
-    target.ClearWith([&](double u, double v) {
-      // Sample centres lie in [-0.5, size - 0.5): rounding picks the pixel that holds them.
-      const int x = std::min(static_cast<int>(u + 0.5), crop.width - 1);
-      const int y = std::min(static_cast<int>(v + 0.5), crop.height - 1);
-      const cv::Vec3f& p = rgb.at<cv::Vec3f>(y, x);
-      return Eigen::Vector3f(p[2], p[1], p[0]);
-    });
-    for (const OverlayStructure& s : internal) {
-      // Opacity 0 hides a structure (the rasterizer only blends opacities in (0, 1]).
-      if (s.vertices_mm == nullptr || s.faces == nullptr || s.faces->rows() == 0 || s.opacity <= 0)
-        continue;
-      render::DrawOptions draw;
-      draw.opacity = static_cast<float>(s.opacity);
-      draw.id = 2;
-      DrawGouraud(*s.vertices_mm, *s.faces, s.color.cast<float>(), draw, &target);
-    }
-    render::DrawOptions draw;
-    draw.opacity = static_cast<float>(options_.organ_opacity);
-    draw.cull_back_faces = true;  // the near side only: structures behind it show through
-    draw.id = 1;
-    if (options_.organ_opacity > 0)
-      DrawGouraud(organ_vertices_mm, organ_faces, options_.organ_color.cast<float>(), draw,
-                  &target);
-    target.ResolveBgr().copyTo((*bgr)(cv::Rect(x0, y0, crop.width, crop.height)));
+  if (!box.empty()) {
+    if (options_.supersampling <= 1)
+      RenderCoverage(box, organ_vertices_mm, organ_faces, internal, bgr);
+    else
+      RenderSupersampled(box, organ_vertices_mm, organ_faces, internal, bgr);
   }
 
   if (options_.wireframe) {

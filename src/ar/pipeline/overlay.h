@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "ar/pipeline/pipeline_options.h"
+#include "ar/render/coverage_layer.h"
 #include "ar/render/rasterizer.h"
 #include "core/camera.h"
 #include "core/mesh.h"
@@ -38,15 +39,33 @@ class OverlayRenderer {
   OverlayRenderer(const PinholeCamera& camera, const RenderStageOptions& options);
 
   // Draws over `bgr` (CV_8UC3, camera size) in place. Only the projected bounding box of the
-  // organ is rasterised (at options.supersampling), so the cost follows the organ's size.
+  // organ and the internal structures is rasterised, so the cost follows the organ's size.
+  // options.supersampling 1 draws with render::CoverageLayer (one sample per pixel,
+  // analytic coverage on silhouette edges); >= 2 with the reference render::RenderTarget at
+  // that many samples per pixel and axis.
   void Render(const RowMatX3d& organ_vertices_mm, const RowMatX3i& organ_faces,
               const std::vector<OverlayStructure>& internal, const OverlayLayers& layers,
-              cv::Mat* bgr) const;
+              cv::Mat* bgr);
 
  private:
+  using RowMatX3f = Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>;
+  void RenderCoverage(const render::PixelRect& box, const RowMatX3d& organ_vertices_mm,
+                      const RowMatX3i& organ_faces, const std::vector<OverlayStructure>& internal,
+                      cv::Mat* bgr);
+  void RenderSupersampled(const render::PixelRect& box, const RowMatX3d& organ_vertices_mm,
+                          const RowMatX3i& organ_faces,
+                          const std::vector<OverlayStructure>& internal, cv::Mat* bgr) const;
+  // Blinn-Phong at the vertices (Gouraud) into vertex_rgb_.
+  void ShadeVertices(const RowMatX3d& vertices, const RowMatX3i& faces,
+                     const Eigen::Vector3f& albedo);
+
   PinholeCamera camera_;
   render::RasterCamera raster_;
   RenderStageOptions options_;
+  // Kept between frames (no per-frame allocation once sized).
+  render::CoverageLayer internal_layer_, organ_layer_;
+  RowMatX3d normals_;
+  RowMatX3f vertex_rgb_;
 };
 
 }  // namespace arreg::pipeline

@@ -1,0 +1,293 @@
+#include "ar/render/coverage_layer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "core/error.h"
+
+namespace arreg::render {
+
+namespace {
+
+// Sub-pixel precision of the fixed-point vertex positions: 1/256 px.
+constexpr int kSubpixelBits = 8;
+constexpr double kSubpixel = 1 << kSubpixelBits;
+// Projected positions beyond +-2^20 px would overflow the 64-bit edge functions; such
+// triangles (vertices a hair in front of the near plane, far off-screen) are skipped.
+constexpr double kMaxCoordinatePx = 1 << 20;
+
+// Antisymmetric tie rule (as RenderTarget's): of two triangles sharing an edge, exactly one
+// owns the pixel centres lying on it.
+inline bool OwnsEdge(int64_t dx, int64_t dy) { return dy > 0 || (dy == 0 && dx < 0); }
+
+inline int64_t FloorDiv(int64_t a, int64_t b) {  // b > 0
+  const int64_t q = a / b;
+  return (a % b != 0 && a < 0) ? q - 1 : q;
+}
+inline int64_t CeilDiv(int64_t a, int64_t b) { return -FloorDiv(-a, b); }  // b > 0
+
+}  // namespace
+
+void CoverageDrawOptions::Check() const {
+  ARREG_CHECK_INPUT(opacity > 0 && opacity <= 1, "", "CoverageDrawOptions.opacity",
+                    "must be in (0, 1], got ", opacity);
+}
+
+CoverageLayer::CoverageLayer(const RasterCamera& camera) : camera_(camera) {
+  camera_.Check();
+  pixels_.reserve(static_cast<size_t>(camera_.width) * camera_.height);
+}
+
+void CoverageLayer::Clear(const PixelRect& rect) {
+  rect_.x0 = std::clamp(rect.x0, 0, camera_.width);
+  rect_.x1 = std::clamp(rect.x1, rect_.x0, camera_.width);
+  rect_.y0 = std::clamp(rect.y0, 0, camera_.height);
+  rect_.y1 = std::clamp(rect.y1, rect_.y0, camera_.height);
+  pixels_.resize(static_cast<size_t>(rect_.width()) * rect_.height());
+  std::fill(pixels_.begin(), pixels_.end(), Pixel{0, 0, 0, 0, 0});
+}
+
+double CoverageLayer::CoveredArea() const {
+  double sum = 0;
+  for (const Pixel& p : pixels_) sum += p.alpha;
+  return sum;
+}
+
+const CoverageLayer::Adjacency& CoverageLayer::AdjacencyOf(const RowMatX3i& faces) {
+  for (const Adjacency& a : adjacency_cache_)
+    if (a.faces.rows() == faces.rows() &&
+        std::memcmp(a.faces.data(), faces.data(), sizeof(int) * faces.size()) == 0)
+      return a;
+  // A few meshes are drawn per frame (organ, internal structures): a small cache keeps each
+  // one's adjacency until its connectivity changes (a cut).
+  constexpr size_t kCacheSize = 8;
+  if (adjacency_cache_.size() < kCacheSize) adjacency_cache_.emplace_back();
+  Adjacency& a = adjacency_cache_[adjacency_next_ % adjacency_cache_.size()];
+  ++adjacency_next_;
+  a.faces = faces;
+  const int nf = static_cast<int>(faces.rows());
+  a.neighbour.assign(3 * static_cast<size_t>(nf), -1);
+  edge_keys_.clear();
+  for (int f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int64_t i = faces(f, k), j = faces(f, (k + 1) % 3);
+      edge_keys_.emplace_back((std::min(i, j) << 32) | std::max(i, j), 3 * f + k);
+    }
+  std::sort(edge_keys_.begin(), edge_keys_.end());
+  for (size_t s = 0; s < edge_keys_.size();) {
+    size_t e = s + 1;
+    while (e < edge_keys_.size() && edge_keys_[e].first == edge_keys_[s].first) ++e;
+    if (e - s == 2) {  // manifold edge; boundary and non-manifold edges keep -1
+      a.neighbour[edge_keys_[s].second] = edge_keys_[s + 1].second / 3;
+      a.neighbour[edge_keys_[s + 1].second] = edge_keys_[s].second / 3;
+    }
+    s = e;
+  }
+  return a;
+}
+
+int64_t CoverageLayer::Draw(
+    const RowMatX3d& vertices_in_world, const RowMatX3i& faces,
+    const Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>& vertex_rgb,
+    const CoverageDrawOptions& options) {
+  options.Check();
+  const int nv = static_cast<int>(vertices_in_world.rows());
+  ARREG_CHECK_INPUT(vertex_rgb.rows() == nv, "", "vertex_rgb", "need one colour per vertex (", nv,
+                    "), got ", vertex_rgb.rows());
+  const int nf = static_cast<int>(faces.rows());
+  for (int f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k)
+      ARREG_CHECK_INPUT(faces(f, k) >= 0 && faces(f, k) < nv, "", "faces", "face ", f,
+                        " has vertex index ", faces(f, k), " outside [0, ", nv, ")");
+  if (rect_.empty() || nf == 0) return 0;
+
+  p_cam_.resize(nv);
+  for (int i = 0; i < nv; ++i)
+    p_cam_[i] = camera_.camera_from_world * Eigen::Vector3d(vertices_in_world.row(i).transpose());
+  facing_.resize(nf);
+  for (int f = 0; f < nf; ++f) {
+    const Eigen::Vector3d& a = p_cam_[faces(f, 0)];
+    const Eigen::Vector3d n = (p_cam_[faces(f, 1)] - a).cross(p_cam_[faces(f, 2)] - a);
+    facing_[f] = n.squaredNorm() == 0 ? 0 : (n.dot(a) < 0 ? 1 : -1);
+  }
+  const Adjacency& adjacency = AdjacencyOf(faces);
+
+  int64_t written = 0;
+  const double near = camera_.near_mm;
+  for (int f = 0; f < nf; ++f) {
+    if (facing_[f] == 0 || (options.cull_back_faces && facing_[f] < 0)) continue;
+    Vertex v[3];
+    bool smooth[3];
+    int inside = 0;
+    for (int k = 0; k < 3; ++k) {
+      v[k].p_cam = p_cam_[faces(f, k)];
+      v[k].rgb = vertex_rgb.row(faces(f, k)).transpose();
+      inside += v[k].p_cam.z() >= near;
+      const int nb = adjacency.neighbour[3 * f + k];
+      // A silhouette edge: the surface ends there in the image (no neighbour, a neighbour of the
+      // other facing, or one that is culled or degenerate).
+      smooth[k] = options.antialias && (nb < 0 || facing_[nb] != facing_[f]);
+    }
+    if (inside == 0) continue;
+    if (inside == 3) {
+      written += DrawTriangle(v, smooth, options.opacity);
+      continue;
+    }
+    // Sutherland-Hodgman against z >= near. An output edge follows an input edge (keeps its
+    // smoothness) or runs along the clip plane (hard: the surface goes on behind it).
+    Vertex poly[4];
+    bool poly_smooth[4];
+    int n = 0;
+    for (int i = 0; i < 3; ++i) {
+      const int j = (i + 1) % 3;
+      const bool in_i = v[i].p_cam.z() >= near, in_j = v[j].p_cam.z() >= near;
+      if (in_i) {
+        poly[n] = v[i];
+        poly_smooth[n++] = smooth[i];
+      }
+      if (in_i != in_j) {
+        const double t = (near - v[i].p_cam.z()) / (v[j].p_cam.z() - v[i].p_cam.z());
+        poly[n].p_cam = v[i].p_cam + t * (v[j].p_cam - v[i].p_cam);
+        poly[n].rgb = v[i].rgb + static_cast<float>(t) * (v[j].rgb - v[i].rgb);
+        poly_smooth[n++] = in_j ? smooth[i] : false;
+      }
+    }
+    for (int t = 1; t + 1 < n; ++t) {
+      const Vertex sub[3] = {poly[0], poly[t], poly[t + 1]};
+      const bool sub_smooth[3] = {t == 1 && poly_smooth[0], poly_smooth[t],
+                                  t + 1 == n - 1 && poly_smooth[n - 1]};
+      written += DrawTriangle(sub, sub_smooth, options.opacity);
+    }
+  }
+  return written;
+}
+
+int64_t CoverageLayer::DrawTriangle(const Vertex v_in[3], const bool smooth_in[3], float opacity) {
+  double px[3], py[3], inv_z[3];
+  for (int k = 0; k < 3; ++k) {
+    inv_z[k] = 1.0 / v_in[k].p_cam.z();
+    px[k] = camera_.fx * v_in[k].p_cam.x() * inv_z[k] + camera_.cx;
+    py[k] = camera_.fy * v_in[k].p_cam.y() * inv_z[k] + camera_.cy;
+    if (!(std::abs(px[k]) < kMaxCoordinatePx && std::abs(py[k]) < kMaxCoordinatePx)) return 0;
+  }
+  int64_t fx[3], fy[3];
+  for (int k = 0; k < 3; ++k) {
+    fx[k] = std::llround(px[k] * kSubpixel);
+    fy[k] = std::llround(py[k] * kSubpixel);
+  }
+  int64_t area = (fx[1] - fx[0]) * (fy[2] - fy[0]) - (fy[1] - fy[0]) * (fx[2] - fx[0]);
+  if (area == 0) return 0;
+  // Vertex order with positive area; edge e runs from vertex o[e] to o[e + 1].
+  int o[3] = {0, 1, 2};
+  bool smooth[3] = {smooth_in[0], smooth_in[1], smooth_in[2]};
+  if (area < 0) {
+    o[1] = 2;
+    o[2] = 1;
+    smooth[0] = smooth_in[2];  // edge (0, 2)
+    smooth[2] = smooth_in[0];  // edge (1, 0)
+    area = -area;
+  }
+  // Edge function of edge e at pixel centre (x, y): E = (Bx - Ax)(y*s - Ay) - (By - Ay)(x*s - Ax)
+  // in 1/s^2 px^2 (s = 256); E / area is the barycentric weight of the vertex opposite e.
+  int64_t step_x[3], step_y[3], threshold[3];
+  float to_distance[3];  // E -> signed distance to the edge line in px (positive inside)
+  bool any_smooth = false;
+  for (int e = 0; e < 3; ++e) {
+    const int a = o[e], b = o[(e + 1) % 3];
+    const int64_t dx = fx[b] - fx[a], dy = fy[b] - fy[a];
+    step_x[e] = -dy * static_cast<int64_t>(kSubpixel);
+    step_y[e] = dx * static_cast<int64_t>(kSubpixel);
+    const double length = std::sqrt(static_cast<double>(dx) * dx + static_cast<double>(dy) * dy);
+    to_distance[e] = static_cast<float>(1.0 / (kSubpixel * length));
+    if (smooth[e]) {
+      // Pixels whose centre lies less than half a pixel outside get partial coverage.
+      threshold[e] = static_cast<int64_t>(std::floor(-0.5 * kSubpixel * length)) + 1;
+      any_smooth = true;
+    } else {
+      threshold[e] = OwnsEdge(dx, dy) ? 0 : 1;
+    }
+  }
+  const double margin = any_smooth ? 1.0 : 0.0;
+  const int x0 =
+      std::max(rect_.x0, static_cast<int>(std::ceil(std::min({px[0], px[1], px[2]}) - margin)));
+  const int x1 = std::min(rect_.x1 - 1,
+                          static_cast<int>(std::floor(std::max({px[0], px[1], px[2]}) + margin)));
+  const int y0 =
+      std::max(rect_.y0, static_cast<int>(std::ceil(std::min({py[0], py[1], py[2]}) - margin)));
+  const int y1 = std::min(rect_.y1 - 1,
+                          static_cast<int>(std::floor(std::max({py[0], py[1], py[2]}) + margin)));
+  if (x0 > x1 || y0 > y1) return 0;
+
+  // Attributes of the vertex opposite each edge.
+  float opposite_inv_z[3];
+  Eigen::Vector3f opposite_rgb[3];
+  for (int e = 0; e < 3; ++e) {
+    opposite_inv_z[e] = static_cast<float>(inv_z[o[(e + 2) % 3]]);
+    opposite_rgb[e] = v_in[o[(e + 2) % 3]].rgb;
+  }
+  int64_t row_e[3];
+  for (int e = 0; e < 3; ++e) {
+    const int a = o[e], b = o[(e + 1) % 3];
+    row_e[e] = (fx[b] - fx[a]) * (y0 * static_cast<int64_t>(kSubpixel) - fy[a]) -
+               (fy[b] - fy[a]) * (x0 * static_cast<int64_t>(kSubpixel) - fx[a]);
+  }
+  int64_t written = 0;
+  const int stride = rect_.width();
+  for (int y = y0; y <= y1; ++y) {
+    // The row's span where every edge passes its test, solved exactly in integers.
+    int64_t lo = x0, hi = x1;
+    for (int e = 0; e < 3 && lo <= hi; ++e) {
+      const int64_t need = threshold[e] - row_e[e];  // step_x * (x - x0) >= need
+      if (step_x[e] > 0)
+        lo = std::max(lo, x0 + CeilDiv(need, step_x[e]));
+      else if (step_x[e] < 0)
+        hi = std::min(hi, x0 + FloorDiv(-need, -step_x[e]));
+      else if (need > 0)
+        hi = lo - 1;
+    }
+    if (lo <= hi) {
+      Pixel* row = pixels_.data() + static_cast<size_t>(y - rect_.y0) * stride;
+      int64_t e_at[3];
+      for (int e = 0; e < 3; ++e) e_at[e] = row_e[e] + step_x[e] * (lo - x0);
+      for (int64_t x = lo; x <= hi; ++x) {
+        float coverage = opacity, weight_sum = 0, inv_depth = 0;
+        Eigen::Vector3f rgb = Eigen::Vector3f::Zero();
+        for (int e = 0; e < 3; ++e) {
+          const float value = static_cast<float>(e_at[e]);
+          if (smooth[e]) coverage *= std::min(1.0f, 0.5f + value * to_distance[e]);
+          // Outside samples of the anti-aliased fringe take the colour and depth on the edge.
+          const float w = std::max(0.0f, value);
+          const float wz = w * opposite_inv_z[e];
+          weight_sum += w;
+          inv_depth += wz;
+          rgb += wz * opposite_rgb[e];
+          e_at[e] += step_x[e];
+        }
+        if (inv_depth <= 0) continue;
+        rgb /= inv_depth;  // perspective-correct Gouraud
+        inv_depth /= weight_sum;
+        Pixel& p = row[x - rect_.x0];
+        if (p.alpha == 0) {
+          p = Pixel{coverage, inv_depth, rgb.x(), rgb.y(), rgb.z()};
+        } else if (inv_depth >= p.inv_depth) {  // in front of what is there
+          const float merged = std::max(coverage, p.alpha), keep = (merged - coverage) / merged;
+          const float take = coverage / merged;
+          p = Pixel{merged, inv_depth, take * rgb.x() + keep * p.r, take * rgb.y() + keep * p.g,
+                    take * rgb.z() + keep * p.b};
+        } else if (coverage > p.alpha) {  // behind: shows where the front leaves room
+          const float merged = coverage, keep = p.alpha / merged, take = 1.0f - keep;
+          p.r = keep * p.r + take * rgb.x();
+          p.g = keep * p.g + take * rgb.y();
+          p.b = keep * p.b + take * rgb.z();
+          p.alpha = merged;
+        }
+        ++written;
+      }
+    }
+    for (int e = 0; e < 3; ++e) row_e[e] += step_y[e];
+  }
+  return written;
+}
+
+}  // namespace arreg::render
