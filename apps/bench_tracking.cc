@@ -72,7 +72,7 @@ int RunBenchTracking(int argc, char** argv) {
       "Figures: decode_ms_per_frame (ReadGray), detect_ms (Fast-Hessian + orientation on\n"
       "frame 0), describe_ms (64-D descriptors of those points), track_ms_per_frame\n"
       "(FeatureTracker::Track incl. pyramid, forward-backward check and filters),\n"
-      "lk_500_ms (Track() per frame over frames 1-10 starting from 500 features),\n"
+      "lk_500_ms (Track() of 500 features detected in frame f-1 into frame f, f = 1..10),\n"
       "features_initial,\n"
       "features_final (still tracked at the last frame).");
   if (!parser.Parse(argc, argv)) return 0;
@@ -141,27 +141,31 @@ int RunBenchTracking(int argc, char** argv) {
     track_runs.push_back(total_ms / (frames.size() - 1));
   }
 
-  // Tracking steps starting from exactly 500 features: the first (up to) 10
-  // frames, while most of them are still followed.
+  // One tracking step with exactly 500 features: for each frame pair (f-1, f),
+  // f = 1..10, 500 points are detected in frame f-1 (not timed) and Track()
+  // follows all of them into frame f (timed: the pyramid of frame f, the
+  // forward pass, the backward check, the masks and the outlier filter). Fresh
+  // features carry no motion prediction, so this is the steady state's worst case.
+  // One tracker serves all pairs, so that, as in a running video, the pyramid
+  // buffers of the frame before are reused rather than allocated.
   FeatureTrackerOptions options_500 = options;
   options_500.max_features = 500;
   options_500.surf.hessian_threshold = 1.0;
   std::vector<double> lk_500_runs;
   int lk_500_features = 0;
-  double lk_500_mean_active = 0;
   const size_t lk_500_frames = std::min<size_t>(10, frames.size() - 1);
   for (int run = 0; run < repeats; ++run) {
+    double total_ms = 0;
     FeatureTracker tracker(options_500);
-    lk_500_features = tracker.Initialize(frames[0]).num_active;
-    double total_ms = 0, active_sum = 0;
     for (size_t f = 1; f <= lk_500_frames; ++f) {
-      active_sum += tracker.num_active();
+      lk_500_features = tracker.Initialize(frames[f - 1]).num_active;
+      ARREG_CHECK_INPUT(lk_500_features == 500, video, "frame " + std::to_string(f - 1), "only ",
+                        lk_500_features, " SURF points at threshold 1 (need 500)");
       const auto start = Clock::now();
       tracker.Track(frames[f]);
       total_ms += MillisecondsSince(start);
     }
     lk_500_runs.push_back(total_ms / lk_500_frames);
-    lk_500_mean_active = active_sum / lk_500_frames;
   }
 
   nlohmann::json out;
@@ -181,7 +185,6 @@ int RunBenchTracking(int argc, char** argv) {
   out["mean_active_features"] = mean_active;
   out["lk_500_ms"] = Median(lk_500_runs);
   out["lk_500_features"] = lk_500_features;
-  out["lk_500_mean_active_features"] = lk_500_mean_active;
   out["features_initial"] = features_initial;
   out["features_final"] = features_final;
 
@@ -194,9 +197,8 @@ int RunBenchTracking(int argc, char** argv) {
   std::printf("  track_ms_per_frame   %8.3f  (%.0f active features on average)\n",
               Median(track_runs), mean_active);
   std::printf(
-      "  lk_500_ms            %8.3f  (per frame, frames 1-%zu, %d features at start, %.0f on "
-      "average)\n",
-      Median(lk_500_runs), lk_500_frames, lk_500_features, lk_500_mean_active);
+      "  lk_500_ms            %8.3f  (Track() of %d features, frame pairs 0-1 .. %zu-%zu)\n",
+      Median(lk_500_runs), lk_500_features, lk_500_frames - 1, lk_500_frames);
   std::printf("  features_initial     %8d\n", features_initial);
   std::printf("  features_final       %8d\n", features_final);
   if (!json_path.empty()) {

@@ -34,19 +34,6 @@ const char* TrackStatusName(TrackStatus status) {
   return "unknown";
 }
 
-void LucasKanadeOptions::Check() const {
-  ARREG_CHECK_INPUT(window_px >= 5 && window_px % 2 == 1, "", "LucasKanadeOptions.window_px",
-                    "must be odd and >= 5, got ", window_px);
-  ARREG_CHECK_INPUT(pyramid_levels >= 0 && pyramid_levels <= 8, "",
-                    "LucasKanadeOptions.pyramid_levels", "must be in 0..8, got ", pyramid_levels);
-  ARREG_CHECK_INPUT(max_iterations >= 1, "", "LucasKanadeOptions.max_iterations",
-                    "must be >= 1, got ", max_iterations);
-  ARREG_CHECK_INPUT(epsilon_px > 0, "", "LucasKanadeOptions.epsilon_px", "must be > 0, got ",
-                    epsilon_px);
-  ARREG_CHECK_INPUT(min_eigen_threshold >= 0, "", "LucasKanadeOptions.min_eigen_threshold",
-                    "must be >= 0, got ", min_eigen_threshold);
-}
-
 void OutlierFilterOptions::Check() const {
   ARREG_CHECK_INPUT(neighbours >= 0, "", "OutlierFilterOptions.neighbours", "must be >= 0, got ",
                     neighbours);
@@ -157,6 +144,76 @@ cv::Mat ReadMask(const std::string& path, int width, int height) {
   return mask;
 }
 
+namespace {
+
+// The k nearest other points of every point, from a uniform grid of about k
+// points per cell searched ring by ring: O(n k) instead of O(n^2) for the
+// ~500 features of a frame. neighbours[i * k + j] is the j-th of point i (unordered).
+void NearestNeighbours(const std::vector<cv::Point2f>& points, int k,
+                       std::vector<int>* neighbours) {
+  const int n = static_cast<int>(points.size());
+  neighbours->assign(static_cast<size_t>(n) * k, -1);
+  cv::Point2f lo = points[0], hi = points[0];
+  for (const cv::Point2f& p : points) {
+    lo.x = std::min(lo.x, p.x), lo.y = std::min(lo.y, p.y);
+    hi.x = std::max(hi.x, p.x), hi.y = std::max(hi.y, p.y);
+  }
+  const float area = std::max(1.f, (hi.x - lo.x) * (hi.y - lo.y));
+  const float cell = std::max(1.f, std::sqrt(area * k / n));
+  const int cols = static_cast<int>((hi.x - lo.x) / cell) + 1;
+  const int rows = static_cast<int>((hi.y - lo.y) / cell) + 1;
+  // Points sorted by cell (counting sort): cell c holds order[start[c] .. start[c+1]).
+  std::vector<int> start(static_cast<size_t>(cols) * rows + 1, 0), order(n), cell_of(n);
+  for (int i = 0; i < n; ++i) {
+    const int cx = static_cast<int>((points[i].x - lo.x) / cell);
+    const int cy = static_cast<int>((points[i].y - lo.y) / cell);
+    cell_of[i] = cy * cols + cx;
+    ++start[cell_of[i] + 1];
+  }
+  for (size_t c = 1; c < start.size(); ++c) start[c] += start[c - 1];
+  std::vector<int> fill(start.begin(), start.end() - 1);
+  for (int i = 0; i < n; ++i) order[fill[cell_of[i]]++] = i;
+
+  std::vector<std::pair<float, int>> best;  // max-heap of the k nearest so far
+  for (int i = 0; i < n; ++i) {
+    best.clear();
+    const int cx = cell_of[i] % cols, cy = cell_of[i] / cols;
+    for (int ring = 0;; ++ring) {
+      for (int y = cy - ring; y <= cy + ring; ++y) {
+        if (y < 0 || y >= rows) continue;
+        const bool edge_row = y == cy - ring || y == cy + ring;
+        for (int x = cx - ring; x <= cx + ring; x += edge_row ? 1 : 2 * ring) {
+          if (x >= 0 && x < cols) {
+            for (int m = start[y * cols + x]; m < start[y * cols + x + 1]; ++m) {
+              const int j = order[m];
+              if (j == i) continue;
+              const cv::Point2f d = points[j] - points[i];
+              const float d2 = d.dot(d);
+              if (static_cast<int>(best.size()) < k) {
+                best.emplace_back(d2, j);
+                std::push_heap(best.begin(), best.end());
+              } else if (d2 < best.front().first) {
+                std::pop_heap(best.begin(), best.end());
+                best.back() = {d2, j};
+                std::push_heap(best.begin(), best.end());
+              }
+            }
+          }
+          if (ring == 0) break;
+        }
+      }
+      // Cells beyond this ring are at least ring * cell away.
+      const float reach = ring * cell;
+      if ((static_cast<int>(best.size()) == k && best.front().first <= reach * reach) ||
+          (ring > cols && ring > rows))
+        break;
+    }
+    for (int j = 0; j < k; ++j) (*neighbours)[static_cast<size_t>(i) * k + j] = best[j].second;
+  }
+}
+
+}  // namespace
+
 std::vector<bool> SpatioTemporalOutliers(const std::vector<cv::Point2f>& positions_px,
                                          const std::vector<cv::Point2f>& displacements_px,
                                          const OutlierFilterOptions& options) {
@@ -171,20 +228,15 @@ std::vector<bool> SpatioTemporalOutliers(const std::vector<cv::Point2f>& positio
     total += magnitude[i];
   }
   const int k = std::min(options.neighbours, n - 1);
-  std::vector<std::pair<float, int>> distances(n);
+  std::vector<int> neighbours;
+  if (k > 0) NearestNeighbours(positions_px, k, &neighbours);
   for (int i = 0; i < n; ++i) {
     double reference;
     if (k == 0) {
       reference = (total - magnitude[i]) / (n - 1);
     } else {
-      const cv::Point2f p = positions_px[i];
-      for (int j = 0; j < n; ++j) {
-        const cv::Point2f d = positions_px[j] - p;
-        distances[j] = {j == i ? std::numeric_limits<float>::max() : d.dot(d), j};
-      }
-      std::nth_element(distances.begin(), distances.begin() + (k - 1), distances.end());
       double sum = 0;
-      for (int j = 0; j < k; ++j) sum += magnitude[distances[j].second];
+      for (int j = 0; j < k; ++j) sum += magnitude[neighbours[static_cast<size_t>(i) * k + j]];
       reference = sum / k;
     }
     outlier[i] = magnitude[i] > options.ratio * reference + options.slack_px;
@@ -232,9 +284,7 @@ void FeatureTracker::PrepareFrame(const cv::Mat& image, const cv::Mat& roi_mask)
   // The previous frame's pyramid is kept, not rebuilt; the buffers of the one
   // before are reused for the new one.
   std::swap(previous_pyramid_, pyramid_);
-  const int win = options_.lk.window_px;
-  cv::buildOpticalFlowPyramid(gray_, pyramid_, cv::Size(win, win), options_.lk.pyramid_levels,
-                              true);
+  pyramid_.Build(gray_, options_.lk.pyramid_levels, options_.lk.window_px);
 }
 
 bool FeatureTracker::IsSpecular(cv::Point2f p) const {
@@ -325,8 +375,6 @@ TrackFrameSummary FeatureTracker::Initialize(const cv::Mat& image, const cv::Mat
   frame_ = 0;
   store_ = TrackStore();
   current_.clear();
-  pyramid_.clear();
-  previous_pyramid_.clear();
   PrepareFrame(image, roi_mask);
   TrackFrameSummary summary;
   summary.frame = 0;
@@ -353,23 +401,29 @@ TrackFrameSummary FeatureTracker::Track(const cv::Mat& image, const cv::Mat& roi
   const int n = static_cast<int>(current_.size());
   if (n > 0) {
     points_from_.resize(n);
-    for (int i = 0; i < n; ++i) points_from_[i] = current_[i].position_px;
+    points_to_.resize(n);
     const LucasKanadeOptions& lk = options_.lk;
-    const cv::Size window(lk.window_px, lk.window_px);
-    const cv::TermCriteria criteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS,
-                                    lk.max_iterations, lk.epsilon_px);
-    cv::calcOpticalFlowPyrLK(previous_pyramid_, pyramid_, points_from_, points_to_, lk_status_,
-                             lk_error_, window, lk.pyramid_levels, criteria, 0,
-                             lk.min_eigen_threshold);
+    for (int i = 0; i < n; ++i) {
+      points_from_[i] = current_[i].position_px;
+      points_to_[i] =
+          points_from_[i] + (lk.predict_motion ? current_[i].displacement_px : cv::Point2f(0, 0));
+    }
+    TrackLucasKanade(previous_pyramid_, pyramid_, points_from_, lk, true, &points_to_, &lk_status_);
     const bool fb = lk.forward_backward_max_px > 0;
     if (fb) {
-      cv::calcOpticalFlowPyrLK(pyramid_, previous_pyramid_, points_to_, points_back_,
-                               lk_status_back_, lk_error_, window, lk.pyramid_levels, criteria, 0,
-                               lk.min_eigen_threshold);
+      // Back from where each point landed, starting at where it came from.
+      LucasKanadeOptions back = lk;
+      back.pyramid_levels =
+          lk.backward_pyramid_levels < 0 ? lk.pyramid_levels : lk.backward_pyramid_levels;
+      back.epsilon_px = lk.backward_epsilon_px;
+      points_back_ = points_from_;
+      TrackLucasKanade(pyramid_, previous_pyramid_, points_to_, back, true, &points_back_,
+                       &lk_status_back_);
     }
     const float border = static_cast<float>(options_.border_px);
-    std::vector<int> candidates;
-    candidates.reserve(n);
+    const float fb_max2 =
+        static_cast<float>(lk.forward_backward_max_px * lk.forward_backward_max_px);
+    candidates_.clear();
     for (int i = 0; i < n; ++i) {
       FeatureState& f = current_[i];
       const cv::Point2f from = f.position_px, to = points_to_[i];
@@ -381,30 +435,32 @@ TrackFrameSummary FeatureTracker::Track(const cv::Mat& image, const cv::Mat& roi
       }
       f.displacement_px = to - f.position_px;
       f.position_px = to;
+      const cv::Point2f miss = fb ? points_back_[i] - points_from_[i] : cv::Point2f(0, 0);
       if (to.x < border || to.y < border || to.x > gray_.cols - 1 - border ||
           to.y > gray_.rows - 1 - border) {
         f.status = TrackStatus::kLostBorder;
       } else if (IsSpecular(to) || IsSpecular(from)) {
         f.status = TrackStatus::kSpecular;
-      } else if (fb && (!lk_status_back_[i] ||
-                        cv::norm(points_back_[i] - points_from_[i]) > lk.forward_backward_max_px)) {
+      } else if (fb && (!lk_status_back_[i] || miss.dot(miss) > fb_max2)) {
         f.status = TrackStatus::kLostForwardBackward;
       } else if (!InsideRoi(to, roi_mask)) {
         f.status = TrackStatus::kLostRoi;
       } else {
-        candidates.push_back(i);
+        candidates_.push_back(i);
       }
     }
     if (options_.outliers.enabled) {
-      std::vector<cv::Point2f> positions, displacements;
-      for (int i : candidates) {
-        positions.push_back(current_[i].position_px);
-        displacements.push_back(current_[i].displacement_px);
+      candidate_positions_.clear();
+      candidate_displacements_.clear();
+      for (int i : candidates_) {
+        candidate_positions_.push_back(current_[i].position_px);
+        candidate_displacements_.push_back(current_[i].displacement_px);
       }
-      const std::vector<bool> outlier =
-          SpatioTemporalOutliers(positions, displacements, options_.outliers);
-      for (size_t j = 0; j < candidates.size(); ++j)
-        if (outlier[j]) current_[candidates[j]].status = TrackStatus::kOutlierSpatioTemporal;
+      outlier_flags_ =
+          SpatioTemporalOutliers(candidate_positions_, candidate_displacements_, options_.outliers);
+      for (size_t j = 0; j < candidates_.size(); ++j)
+        if (outlier_flags_[j])
+          current_[candidates_[j]].status = TrackStatus::kOutlierSpatioTemporal;
     }
     for (const FeatureState& f : current_) store_.Record(f.id, {frame_, f.position_px, f.status});
   }

@@ -8,6 +8,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "tracking/lucas_kanade.h"
 #include "tracking/surf.h"
 
 namespace arreg {
@@ -25,25 +26,6 @@ enum class TrackStatus : uint8_t {
 };
 constexpr int kNumTrackStatuses = 7;
 const char* TrackStatusName(TrackStatus status);
-
-struct LucasKanadeOptions {
-  // Side of the square integration window, pixels (odd, >= 5). Default 21.
-  int window_px = 21;
-  // Coarsest pyramid level (0 = no pyramid); each level halves the image. Default 3.
-  int pyramid_levels = 3;
-  // Iterations per pyramid level. Default 20.
-  int max_iterations = 20;
-  // Stop when the update is below this, pixels. Default 0.03.
-  double epsilon_px = 0.03;
-  // Minimum eigenvalue of the window's gradient matrix (OpenCV's normalised
-  // units); flatter windows are lost (kLostFlow). Default 1e-4.
-  double min_eigen_threshold = 1e-4;
-  // Forward-backward consistency: lost when tracking back lands farther than
-  // this from the start, pixels; <= 0 disables the check. Default 1.0.
-  double forward_backward_max_px = 1.0;
-
-  void Check() const;  // throws arreg::Error naming the bad field
-};
 
 // Spatio-temporal outlier filter (thesis 7.4.1): a feature whose frame-to-frame
 // displacement is far above the average displacement of its neighbours jumps
@@ -176,13 +158,15 @@ class FeatureTracker {
   SurfDetector surf_;
   int frame_ = -1;
   cv::Mat gray_, bgr_;  // current frame (bgr_ empty for grey input)
-  std::vector<cv::Mat> pyramid_, previous_pyramid_;
+  LucasKanadePyramid pyramid_, previous_pyramid_;
   std::vector<FeatureState> current_;
   TrackStore store_;
   // Scratch kept between frames to avoid reallocation.
   std::vector<cv::Point2f> points_from_, points_to_, points_back_;
   std::vector<uint8_t> lk_status_, lk_status_back_;
-  std::vector<float> lk_error_;
+  std::vector<int> candidates_;
+  std::vector<cv::Point2f> candidate_positions_, candidate_displacements_;
+  std::vector<bool> outlier_flags_;
 };
 
 // The spatio-temporal test on its own: flags[i] is true when |displacements_px[i]|
