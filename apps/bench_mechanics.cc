@@ -78,8 +78,8 @@ struct BenchSettings {
   std::string factorization = "auto";
   int steps = 200, warmup = 5, repeats = 5, springs = 200;
   double dt_s = 1.0 / 30.0, stiffness = 10.0, youngs_pa = 3000.0, poisson = 0.45;
-  double cg_tolerance = 1e-6, amplitude = 0.05;
-  int refactor_iterations = 6;
+  double cg_tolerance = 1e-3, amplitude = 0.05;
+  int refactor_iterations = 20;
   unsigned seed = 1;
 };
 

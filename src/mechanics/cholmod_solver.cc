@@ -85,12 +85,22 @@ class CholmodSolver : public LinearSolver {
       summary.symbolic_analysis = true;
       factor_valid_ = false;
       has_numeric_ = false;
+      // Cost model of cholmod-pcg in flops: a factorisation, and one CG
+      // iteration = a forward and a backward solve (2 flops per factor entry
+      // each) plus the product with A.
+      factorization_flops_ = common_.fl;
+      iteration_flops_ = 4.0 * common_.lnz + 2.0 * static_cast<double>(A.nonZeros());
     }
     // cholmod-pcg: an earlier factor preconditions CG while it keeps CG short.
     if (!factor_valid_ && pcg_ && has_numeric_ && !refactor_next_) {
       const int iterations = PreconditionedCg(A, b, x, &summary);
       if (summary.status == LinearSolverStatus::kConverged) {
-        refactor_next_ = iterations > options_.refactor_iterations;
+        const double cost = iterations * iteration_flops_;
+        flops_since_factorization_ += cost;
+        ++solves_since_factorization_;
+        refactor_next_ = iterations > options_.refactor_iterations ||
+                         (options_.refactor_by_cost &&
+                          cost * solves_since_factorization_ > flops_since_factorization_);
         return summary;
       }
       if (summary.status == LinearSolverStatus::kNumericalFailure) return summary;
@@ -114,6 +124,8 @@ class CholmodSolver : public LinearSolver {
       factor_valid_ = true;
       has_numeric_ = true;
       refactor_next_ = false;
+      flops_since_factorization_ = factorization_flops_ + iteration_flops_;
+      solves_since_factorization_ = 1;
     }
     if (!SolveWithFactor(b, x)) {
       summary.status = LinearSolverStatus::kNumericalFailure;
@@ -232,7 +244,11 @@ class CholmodSolver : public LinearSolver {
   cholmod_dense *x_ = nullptr, *y_ = nullptr, *e_ = nullptr;
   bool factor_valid_ = false;   // factor of the current values
   bool has_numeric_ = false;    // factor holds the values of some earlier matrix
-  bool refactor_next_ = false;  // cholmod-pcg: the last CG was too long
+  bool refactor_next_ = false;  // cholmod-pcg: refactorise at the next solve
+  // cholmod-pcg cost model (flops; see LinearSolverOptions::refactor_by_cost).
+  double factorization_flops_ = 0.0, iteration_flops_ = 0.0;
+  double flops_since_factorization_ = 0.0;  // factorisation + solves since
+  int solves_since_factorization_ = 0;      // including the factorisation's
   Eigen::VectorXd r_, z_, p_, q_;
 };
 

@@ -23,17 +23,28 @@ void CorotationalElasticity::Update(const MechanicalState& state, const RowMatX3
   const int nt = state.num_tetrahedra();
   if (static_cast<int>(rotations_.size()) != nt) {
     rotations_.resize(nt, Eigen::Matrix3d::Identity());
+    quaternions_.resize(nt, Eigen::Quaterniond::Identity());
     rotated_gradients_.resize(nt);
   }
+  const bool polar = options_.rotation_method == RotationMethod::kPolar;
+  const RowMatX4i& tets = state.tetrahedra();
   int inverted = 0;
   long long iterations = 0;
   for (int t = 0; t < nt; ++t) {
     const TetRestData& rest = state.rest_data(t);
-    const Eigen::Matrix3d F = DeformationGradient(rest, state.TetPositions(t, x));
+    const Eigen::Matrix<double, 4, 3>& g = rest.shape_gradients;
+    // F = sum_a x_a g_a^T.
+    Eigen::Matrix3d F = x.row(tets(t, 0)).transpose() * g.row(0);
+    for (int a = 1; a < 4; ++a) F.noalias() += x.row(tets(t, a)).transpose() * g.row(a);
     if (F.determinant() <= 0.0) ++inverted;
-    iterations += ExtractRotation(F, options_.rotation_method, &rotations_[t],
-                                  options_.polar_max_iterations, options_.polar_tolerance);
-    rotated_gradients_[t].noalias() = rest.shape_gradients * rotations_[t].transpose();
+    Eigen::Matrix3d& R = rotations_[t];
+    if (polar)
+      iterations += PolarRotation(F, &quaternions_[t], &R, options_.polar_max_iterations,
+                                  options_.polar_tolerance);
+    else
+      iterations += ExtractRotation(F, options_.rotation_method, &R, options_.polar_max_iterations,
+                                    options_.polar_tolerance);
+    rotated_gradients_[t].noalias() = g * R.transpose();
   }
   num_inverted_ = inverted;
   mean_iterations_ = nt > 0 ? static_cast<double>(iterations) / nt : 0.0;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <vector>
 
 #include "mechanics/energy.h"
@@ -10,7 +11,7 @@
 namespace arreg::mechanics {
 
 struct CorotationalOptions {
-  RotationMethod rotation_method = RotationMethod::kPolar;  // default polar (Mueller iteration)
+  RotationMethod rotation_method = RotationMethod::kPolar;  // default polar (Newton iteration)
   int polar_max_iterations = 20;   // cap of the polar iteration per element; default 20
   double polar_tolerance = 1e-12;  // stop when the rotation update angle (rad) is below; 1e-12
   void Check() const;
@@ -46,6 +47,7 @@ class CorotationalElasticity : public EnergyTerm {
  private:
   CorotationalOptions options_;
   std::vector<Eigen::Matrix3d> rotations_;
+  std::vector<Eigen::Quaterniond> quaternions_;  // kPolar: the same rotations (warm starts)
   std::vector<Eigen::Matrix<double, 4, 3>> rotated_gradients_;  // rows R g_a
   int num_inverted_ = 0;
   double mean_iterations_ = 0.0;

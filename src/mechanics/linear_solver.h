@@ -12,7 +12,7 @@ namespace arreg::mechanics {
 
 // kCholmodPcg: CHOLMOD's factor of an earlier matrix preconditions CG on the
 // current one (for slowly changing matrices such as corotational Hessians from
-// frame to frame); refactorised when CG needs more than refactor_iterations.
+// frame to frame); refactorised when that pays off (see refactor_by_cost).
 enum class LinearSolverType { kConjugateGradient, kCholmod, kCholmodPcg };
 enum class Preconditioner {
   kNone,
@@ -39,9 +39,15 @@ struct LinearSolverOptions {
   // CHOLMOD only:
   // default auto: supernodal when the factor needs >= 100 flops per nonzero
   CholmodFactorization factorization = CholmodFactorization::kAuto;
-  // cholmod-pcg only: when preconditioned CG needed more than this many
-  // iterations, the next solve refactorises; default 6.
-  int refactor_iterations = 6;
+  // cholmod-pcg only. Amortised refactorisation: the next solve refactorises
+  // when the last solve cost more (in flops: CG iterations x (triangular solves
+  // + product with A)) than the mean per solve since the last factorisation,
+  // the factorisation included - the refactorisation pays for itself once the
+  // iterations of a stale factor have grown enough. Default true.
+  bool refactor_by_cost = true;
+  // cholmod-pcg only: a solve that needed more than this many CG iterations
+  // makes the next one refactorise, whatever the cost rule says; default 20.
+  int refactor_iterations = 20;
   void Check() const;
 };
 

@@ -87,48 +87,86 @@ void PolarSvd(const Eigen::Matrix3d& F, Eigen::Matrix3d* rotation) {
   *rotation = U * V.transpose();
 }
 
+}  // namespace
+
 // Polar rotation by Newton's method on the rotation: with G = R^T F, the
 // polar R makes G symmetric; linearising R <- R exp(hat(w)) gives
-// (tr(G) I - sym(G)) w = axial(G - G^T), which converges quadratically from
-// a warm start. Far from the answer (the matrix is not positive definite) the
-// step falls back to the gradient-like step of Mueller et al. 2016,
-// w = axial(G - G^T) / |tr G|, and steps are capped at 1 rad.
-int PolarNewton(const Eigen::Matrix3d& F, Eigen::Matrix3d* rotation, int max_iterations,
-                double tolerance) {
-  Eigen::Matrix3d R = *rotation;
+// (tr(G) I - sym(G)) w = axial(G - G^T). The rotation is kept as a unit
+// quaternion and updated by the quaternion (1, w/2) normalised - a rotation by
+// 2 atan(|w|/2) = |w| + O(|w|^3) about w, so the iteration stays quadratic,
+// needs no trigonometry and R stays orthonormal over any number of
+// warm-started calls. Far from the answer (the matrix is not positive
+// definite) the step falls back to the gradient-like step of Mueller et al.
+// 2016, w = axial(G - G^T) / |tr G|, and steps are capped at 1 rad.
+int PolarRotation(const Eigen::Matrix3d& F, Eigen::Quaterniond* q, Eigen::Matrix3d* R,
+                  int max_iterations, double tolerance) {
+  Eigen::Quaterniond rotation = *q;
+  Eigen::Matrix3d r = rotation.toRotationMatrix();
   int iteration = 0;
+  bool converged = false;
   for (; iteration < max_iterations; ++iteration) {
-    const Eigen::Matrix3d G = R.transpose() * F;
-    const Eigen::Vector3d t(G(2, 1) - G(1, 2), G(0, 2) - G(2, 0), G(1, 0) - G(0, 1));
-    const double tr = G.trace();
-    Eigen::Matrix3d M = -0.5 * (G + G.transpose());
-    M.diagonal().array() += tr;
-    Eigen::Vector3d w;
-    const double det = M.determinant();
-    if (tr > 0.0 && det > 1e-6 * tr * tr * tr && M(0, 0) > 0.0 &&
-        M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0) > 0.0) {
-      w = M.inverse() * t;
+    const Eigen::Matrix3d G = r.transpose() * F;
+    const double t0 = G(2, 1) - G(1, 2), t1 = G(0, 2) - G(2, 0), t2 = G(1, 0) - G(0, 1);
+    const double tr = G(0, 0) + G(1, 1) + G(2, 2);
+    // M = tr(G) I - sym(G) (symmetric); w = M^-1 t by cofactors.
+    const double m00 = tr - G(0, 0), m11 = tr - G(1, 1), m22 = tr - G(2, 2);
+    const double m01 = -0.5 * (G(0, 1) + G(1, 0)), m02 = -0.5 * (G(0, 2) + G(2, 0)),
+                 m12 = -0.5 * (G(1, 2) + G(2, 1));
+    const double c00 = m11 * m22 - m12 * m12, c01 = m02 * m12 - m01 * m22,
+                 c02 = m01 * m12 - m02 * m11;
+    const double det = m00 * c00 + m01 * c01 + m02 * c02;
+    double w0, w1, w2;
+    const bool newton =
+        tr > 0.0 && det > 1e-6 * tr * tr * tr && m00 > 0.0 && m00 * m11 - m01 * m01 > 0.0;
+    if (newton) {
+      const double c11 = m00 * m22 - m02 * m02, c12 = m01 * m02 - m00 * m12,
+                   c22 = m00 * m11 - m01 * m01;
+      const double inv = 1.0 / det;
+      w0 = inv * (c00 * t0 + c01 * t1 + c02 * t2);
+      w1 = inv * (c01 * t0 + c11 * t1 + c12 * t2);
+      w2 = inv * (c02 * t0 + c12 * t1 + c22 * t2);
     } else {
-      w = t / (std::abs(tr) + 1e-12);
+      const double inv = 1.0 / (std::abs(tr) + 1e-12);
+      w0 = inv * t0;
+      w1 = inv * t1;
+      w2 = inv * t2;
     }
-    double angle = w.norm();
-    if (!(angle > tolerance)) break;  // also stops on NaN input
-    if (angle > 1.0) {
-      w /= angle;
-      angle = 1.0;
+    double angle2 = w0 * w0 + w1 * w1 + w2 * w2;
+    if (!(angle2 > tolerance * tolerance)) {  // also stops on NaN input
+      converged = angle2 <= tolerance * tolerance;
+      break;
     }
-    R = R * Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
+    if (angle2 > 1.0) {
+      const double s = 1.0 / std::sqrt(angle2);
+      w0 *= s;
+      w1 *= s;
+      w2 *= s;
+      angle2 = 1.0;
+    }
+    rotation = rotation * Eigen::Quaterniond(1.0, 0.5 * w0, 0.5 * w1, 0.5 * w2);
+    rotation.normalize();
+    r = rotation.toRotationMatrix();
+    // Quadratic convergence: the error left after a step of angle |w| is
+    // ~C |w|^2 with C ~ 1 for elements that are not nearly flat; stop without
+    // a confirming iteration once that is 100x below the tolerance.
+    if (newton && angle2 <= 1e-2 * tolerance) {
+      ++iteration;
+      converged = true;
+      break;
+    }
   }
-  if (iteration == max_iterations || !R.allFinite()) {
+  if (!converged || !r.allFinite()) {
     // Not converged (a start far from the answer, or a near-singular F): the
     // SVD answer is exact.
-    PolarSvd(F, rotation);
-    return iteration;
+    PolarSvd(F, &r);
+    rotation = Eigen::Quaterniond(r);
   }
-  // One Newton-Schulz step keeps R orthonormal over many warm-started calls.
-  *rotation = 1.5 * R - 0.5 * R * R.transpose() * R;
+  *q = rotation;
+  *R = r;
   return iteration;
 }
+
+namespace {
 
 void GramSchmidt(const Eigen::Matrix3d& F, Eigen::Matrix3d* rotation) {
   Eigen::Vector3d r0 = F.col(0);
@@ -155,8 +193,10 @@ void GramSchmidt(const Eigen::Matrix3d& F, Eigen::Matrix3d* rotation) {
 int ExtractRotation(const Eigen::Matrix3d& F, RotationMethod method, Eigen::Matrix3d* rotation,
                     int max_iterations, double tolerance) {
   switch (method) {
-    case RotationMethod::kPolar:
-      return PolarNewton(F, rotation, max_iterations, tolerance);
+    case RotationMethod::kPolar: {
+      Eigen::Quaterniond q(*rotation);
+      return PolarRotation(F, &q, rotation, max_iterations, tolerance);
+    }
     case RotationMethod::kPolarSvd:
       PolarSvd(F, rotation);
       return 1;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <string>
 
 namespace arreg::mechanics {
@@ -66,6 +67,15 @@ Eigen::Matrix3d DeformationGradient(const TetRestData& rest, const Eigen::Matrix
 // kPolar) and the result on output. Returns the number of iterations used.
 int ExtractRotation(const Eigen::Matrix3d& F, RotationMethod method, Eigen::Matrix3d* rotation,
                     int max_iterations = 20, double tolerance = 1e-12);
+
+// RotationMethod::kPolar with the warm start kept as a unit quaternion
+// (updated in place; what CorotationalElasticity stores per element) and the
+// rotation matrix written to *R. Stops when the Newton update angle (rad) is
+// below `tolerance`, or - by the quadratic convergence - right after an update
+// whose squared angle is below tolerance / 100; falls back to the SVD when it
+// does not converge within max_iterations. Returns the updates made.
+int PolarRotation(const Eigen::Matrix3d& F, Eigen::Quaterniond* rotation, Eigen::Matrix3d* R,
+                  int max_iterations = 20, double tolerance = 1e-12);
 
 // Corotational energy with the rotation R held fixed:
 //   E_e(x) = V (mu eps:eps + lambda/2 tr(eps)^2),  eps = sym(R^T F(x) - I)

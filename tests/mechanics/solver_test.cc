@@ -76,7 +76,9 @@ TEST(CholmodPcg, SameStepsAsCholmodWithAStaleFactor) {
   ImplicitEulerIntegrator jacobi(
       StepOptions(LinearSolverType::kConjugateGradient, Preconditioner::kJacobi));
   ImplicitEulerOptions o = StepOptions(LinearSolverType::kCholmodPcg, Preconditioner::kJacobi);
-  o.linear_solver.refactor_iterations = 1000;  // never refactorise: the first factor preconditions
+  // Never refactorise: the first factor preconditions every later solve.
+  o.linear_solver.refactor_by_cost = false;
+  o.linear_solver.refactor_iterations = 1000;
   ImplicitEulerIntegrator pcg(o);
   int iterations = 0, jacobi_iterations = 0;
   for (int step = 0; step < 8; ++step) {
