@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <ostream>
 #include <random>
 #include <regex>
@@ -70,7 +71,14 @@ struct Figures {
   double ms_per_step_mean = 0, cpu_ms_per_step_mean = 0, cpu_ms_per_step_max = 0;
   double rotation_ms = 0, assembly_ms = 0, solve_ms = 0;
   double cg_iterations_mean = 0, rotation_iterations_mean = 0, max_displacement_mm = 0;
-  int inverted_elements = 0;
+  int inverted_elements = 0, factorizations = 0;
+  // --check-accuracy: per step, |y - y_ref| / |y_ref - x_n| of the benchmarked
+  // step against one Newton step solved by exact Cholesky (solver error) and of
+  // that against the fully converged implicit Euler step (linearisation error
+  // of one Newton step).
+  bool accuracy_checked = false;
+  double solver_error_median = 0, solver_error_max = 0;
+  double newton_error_median = 0, newton_error_max = 0;
 };
 
 struct BenchSettings {
@@ -80,6 +88,8 @@ struct BenchSettings {
   double dt_s = 1.0 / 30.0, stiffness = 10.0, youngs_pa = 3000.0, poisson = 0.45;
   double cg_tolerance = 1e-3, amplitude = 0.05;
   int refactor_iterations = 20;
+  bool refactor_by_cost = true, check_accuracy = false;
+  std::string warm_start = "extrapolate";
   unsigned seed = 1;
 };
 
@@ -109,6 +119,17 @@ Figures RunScene(const TetMesh& mesh, const BenchSettings& s) {
   options.linear_solver.relative_tolerance = s.cg_tolerance;
   options.linear_solver.factorization = ParseCholmodFactorization(s.factorization);
   options.linear_solver.refactor_iterations = s.refactor_iterations;
+  options.linear_solver.refactor_by_cost = s.refactor_by_cost;
+  options.warm_start = s.warm_start == "velocity" ? WarmStart::kVelocity : WarmStart::kExtrapolate;
+  // References for --check-accuracy: one Newton step by exact Cholesky, and
+  // Newton iterated to convergence.
+  ImplicitEulerOptions exact_options = options;
+  exact_options.linear_solver.type = LinearSolverType::kCholmod;
+  ImplicitEulerOptions newton_options = exact_options;
+  newton_options.newton_mode = NewtonMode::kFullNewton;
+  newton_options.max_newton_iterations = 50;
+  newton_options.newton_tolerance_mm = 1e-9;
+  std::vector<double> solver_errors, newton_errors;
   CorotationalOptions corotational;
   corotational.rotation_method = ParseRotationMethod(s.rotation);
 
@@ -122,6 +143,7 @@ Figures RunScene(const TetMesh& mesh, const BenchSettings& s) {
     for (int i = 0; i < embedded.size(); ++i)
       springs.Add(embedded[i], anchors.row(i).transpose(), s.stiffness);
     ImplicitEulerIntegrator integrator(options);
+    ImplicitEulerIntegrator exact(exact_options), newton(newton_options);
     for (int step = 0; step < s.warmup + s.steps; ++step) {
       // Targets: a travelling wave of amplitude `amplitude * size`.
       const double phase = 2 * M_PI * step / 60.0;
@@ -131,12 +153,32 @@ Figures RunScene(const TetMesh& mesh, const BenchSettings& s) {
         springs.SetTarget(i,
                           a + s.amplitude * size * w * Eigen::Vector3d(0.3, 1.0, 0.2).normalized());
       }
+      std::optional<MechanicalState> exact_state, newton_state;
+      std::optional<CorotationalElasticity> exact_elastic, newton_elastic;
+      if (s.check_accuracy && step >= s.warmup) {
+        exact_state.emplace(state);
+        newton_state.emplace(state);
+        exact_elastic.emplace(elastic);
+        newton_elastic.emplace(elastic);
+      }
       const double cpu0 = ThreadCpuMs();
       const StepSummary summary = integrator.Step(&state, &elastic, {&springs});
       const double cpu_ms = ThreadCpuMs() - cpu0;
       ARREG_CHECK_INPUT(summary.status == StepStatus::kConverged, "",
                         "step " + std::to_string(step),
                         "the implicit step failed: ", summary.message);
+      if (step >= s.warmup) f.factorizations += summary.factorizations;
+      if (exact_state) {
+        const RowMatX3d x_n = exact_state->positions();
+        const StepSummary e = exact.Step(&*exact_state, &*exact_elastic, {&springs});
+        const StepSummary n = newton.Step(&*newton_state, &*newton_elastic, {&springs});
+        ARREG_CHECK_INPUT(e.status == StepStatus::kConverged && n.status == StepStatus::kConverged,
+                          "", "step " + std::to_string(step), "a reference step failed");
+        const double step_norm = (newton_state->positions() - x_n).norm();
+        solver_errors.push_back((state.positions() - exact_state->positions()).norm() / step_norm);
+        newton_errors.push_back((exact_state->positions() - newton_state->positions()).norm() /
+                                step_norm);
+      }
       if (step < s.warmup) continue;
       wall.push_back(summary.total_ms);
       cpu.push_back(cpu_ms);
@@ -166,49 +208,105 @@ Figures RunScene(const TetMesh& mesh, const BenchSettings& s) {
   f.solve_ms = Median(solve);
   f.cg_iterations_mean = cg_iterations / std::max(1, timed_steps);
   f.rotation_iterations_mean = rotation_iterations / std::max(1, timed_steps);
+  if (!solver_errors.empty()) {
+    f.accuracy_checked = true;
+    f.solver_error_median = Median(solver_errors);
+    f.solver_error_max = *std::max_element(solver_errors.begin(), solver_errors.end());
+    f.newton_error_median = Median(newton_errors);
+    f.newton_error_max = *std::max_element(newton_errors.begin(), newton_errors.end());
+  }
   return f;
 }
 
 nlohmann::json ToJson(const std::string& mesh, const BenchSettings& s, const Figures& f) {
-  return {{"mesh", mesh},
-          {"solver", s.solver},
-          {"preconditioner", s.solver == "cg" ? s.preconditioner : ""},
-          {"factorization", s.solver != "cg" ? s.factorization : ""},
-          {"rotation", s.rotation},
-          {"tets", f.tets},
-          {"dofs", f.dofs},
-          {"springs", f.springs},
-          {"steps", f.steps},
-          {"repeats", f.repeats},
-          {"dt_s", s.dt_s},
-          {"ms_per_step_median", f.ms_per_step_median},
-          {"cpu_ms_per_step_median", f.cpu_ms_per_step_median},
-          {"ms_per_step_mean", f.ms_per_step_mean},
-          {"cpu_ms_per_step_mean", f.cpu_ms_per_step_mean},
-          {"cpu_ms_per_step_max", f.cpu_ms_per_step_max},
-          {"rotation_ms", f.rotation_ms},
-          {"assembly_ms", f.assembly_ms},
-          {"solve_ms", f.solve_ms},
-          {"cg_iterations_mean", f.cg_iterations_mean},
-          {"rotation_iterations_mean", f.rotation_iterations_mean},
-          {"max_displacement_mm", f.max_displacement_mm},
-          {"inverted_elements", f.inverted_elements}};
+  nlohmann::json j = {{"mesh", mesh},
+                      {"solver", s.solver},
+                      {"preconditioner", s.solver == "cg" ? s.preconditioner : ""},
+                      {"factorization", s.solver != "cg" ? s.factorization : ""},
+                      {"rotation", s.rotation},
+                      {"cg_tolerance", s.cg_tolerance},
+                      {"warm_start", s.warm_start},
+                      {"tets", f.tets},
+                      {"dofs", f.dofs},
+                      {"springs", f.springs},
+                      {"steps", f.steps},
+                      {"repeats", f.repeats},
+                      {"dt_s", s.dt_s},
+                      {"ms_per_step_median", f.ms_per_step_median},
+                      {"cpu_ms_per_step_median", f.cpu_ms_per_step_median},
+                      {"ms_per_step_mean", f.ms_per_step_mean},
+                      {"cpu_ms_per_step_mean", f.cpu_ms_per_step_mean},
+                      {"cpu_ms_per_step_max", f.cpu_ms_per_step_max},
+                      {"cpu_us_per_tet", 1e3 * f.cpu_ms_per_step_median / f.tets},
+                      {"rotation_ms", f.rotation_ms},
+                      {"assembly_ms", f.assembly_ms},
+                      {"solve_ms", f.solve_ms},
+                      {"cg_iterations_mean", f.cg_iterations_mean},
+                      {"factorizations", f.factorizations},
+                      {"rotation_iterations_mean", f.rotation_iterations_mean},
+                      {"max_displacement_mm", f.max_displacement_mm},
+                      {"inverted_elements", f.inverted_elements}};
+  if (f.accuracy_checked) {
+    j["solver_error_median"] = f.solver_error_median;
+    j["solver_error_max"] = f.solver_error_max;
+    j["newton_error_median"] = f.newton_error_median;
+    j["newton_error_max"] = f.newton_error_max;
+  }
+  return j;
+}
+
+void PrintHeader() {
+  std::printf("%-22s %-11s %7s %7s %9s %9s %9s %7s %8s %8s %8s %6s %5s %6s\n", "mesh", "solver",
+              "tets", "dofs", "ms/step", "cpu_ms", "cpu_mean", "us/tet", "rot_ms", "asm_ms",
+              "solve_ms", "cg_it", "facts", "rot_it");
 }
 
 void Print(const std::string& mesh, const BenchSettings& s, const Figures& f) {
-  std::printf("%-28s %-11s %7d %7d %9.3f %9.3f %9.3f %9.3f %9.3f %9.3f %8.1f %7.2f\n", mesh.c_str(),
-              s.solver.c_str(), f.tets, f.dofs, f.ms_per_step_median, f.cpu_ms_per_step_median,
-              f.cpu_ms_per_step_mean, f.rotation_ms, f.assembly_ms, f.solve_ms,
-              f.cg_iterations_mean, f.rotation_iterations_mean);
+  const std::string name = mesh.size() > 22 ? "..." + mesh.substr(mesh.size() - 19) : mesh;
+  std::printf("%-22s %-11s %7d %7d %9.3f %9.3f %9.3f %7.3f %8.3f %8.3f %8.3f %6.2f %5d %6.2f\n",
+              name.c_str(), s.solver.c_str(), f.tets, f.dofs, f.ms_per_step_median,
+              f.cpu_ms_per_step_median, f.cpu_ms_per_step_mean,
+              1e3 * f.cpu_ms_per_step_median / f.tets, f.rotation_ms, f.assembly_ms, f.solve_ms,
+              f.cg_iterations_mean, f.factorizations, f.rotation_iterations_mean);
+  if (f.accuracy_checked)
+    std::printf(
+        "  step error vs exact Cholesky: median %.2e max %.2e; one Newton step vs converged "
+        "Newton: median %.2e max %.2e\n",
+        f.solver_error_median, f.solver_error_max, f.newton_error_median, f.newton_error_max);
+}
+
+// Least-squares slope of log(cpu ms per step) over log(#tets): 1 = linear growth.
+double GrowthExponent(const std::vector<Figures>& series) {
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  const double n = static_cast<double>(series.size());
+  for (const Figures& f : series) {
+    const double x = std::log(f.tets), y = std::log(f.cpu_ms_per_step_median);
+    sx += x;
+    sy += y;
+    sxx += x * x;
+    sxy += x * y;
+  }
+  return (n * sxy - sx * sy) / (n * sxx - sx * sx);
+}
+
+std::vector<std::string> SplitCommas(const std::string& list) {
+  std::vector<std::string> items;
+  size_t start = 0;
+  while (start <= list.size()) {
+    const size_t end = std::min(list.find(',', start), list.size());
+    if (end > start) items.push_back(list.substr(start, end - start));
+    start = end + 1;
+  }
+  return items;
 }
 
 }  // namespace
 
 int RunBenchMechanics(int argc, char** argv) {
-  std::string mesh_spec, json_path;
+  std::string mesh_spec, json_path, sweep_boxes;
   BenchSettings s;
   int seed = 1;
-  bool scaling = false;
+  bool sweep = false, no_cost_refactor = false;
   OptionParser parser(
       "arreg bench mechanics --mesh M [--solver cg|cholmod|cholmod-pcg] [--steps N] [--json OUT]",
       "Times the registration's mechanical step: corotational tetrahedra pulled by "
@@ -219,8 +317,11 @@ int RunBenchMechanics(int argc, char** argv) {
                    "6- or 5-tetrahedra split)",
                    true);
   parser.AddString("solver", &s.solver, "S",
-                   "linear solver: cg, cholmod, or cholmod-pcg (CG preconditioned by the last "
-                   "CHOLMOD factor, refactorised when CG needs more than --refactor-iterations)");
+                   "linear solver: cg, cholmod, or cholmod-pcg (CG preconditioned by an "
+                   "earlier CHOLMOD factor, refactorised when that pays off)");
+  parser.AddFlag("no-cost-refactor", &no_cost_refactor,
+                 "cholmod-pcg: refactorise only after more than --refactor-iterations "
+                 "iterations, not by the amortised cost rule");
   parser.AddInt("refactor-iterations", &s.refactor_iterations, "N",
                 "cholmod-pcg: refactorise after a solve that needed more CG iterations");
   parser.AddString("preconditioner", &s.preconditioner, "P",
@@ -228,24 +329,37 @@ int RunBenchMechanics(int argc, char** argv) {
   parser.AddString("factorization", &s.factorization, "F",
                    "CHOLMOD factorisation: supernodal, simplicial, auto");
   parser.AddString("rotation", &s.rotation, "R", "element rotation: polar, polar-svd, qr");
+  parser.AddString("warm-start", &s.warm_start, "W",
+                   "iterative solvers' first guess: extrapolate (h (2 v_n - v_n-1)) or "
+                   "velocity (h v_n)");
   parser.AddInt("steps", &s.steps, "N", "timed steps per run");
   parser.AddInt("repeats", &s.repeats, "N", "runs (medians over all timed steps)");
   parser.AddInt("springs", &s.springs, "N", "number of springs (features)");
   parser.AddDouble("spring-stiffness", &s.stiffness, "K", "stiffness per spring in N/m");
   parser.AddDouble("youngs-modulus", &s.youngs_pa, "PA", "Young's modulus in Pa");
   parser.AddDouble("dt", &s.dt_s, "S", "time step in s (one video frame)");
-  parser.AddDouble("cg-tolerance", &s.cg_tolerance, "T", "CG relative residual tolerance");
+  parser.AddDouble("cg-tolerance", &s.cg_tolerance, "T",
+                   "CG relative residual tolerance (the integrator's default 1e-3)");
   parser.AddInt("seed", &seed, "N", "seed of the random spring anchors");
-  parser.AddFlag("scaling", &scaling,
-                 "also run boxes of 1x to 16x the mesh's size class to show the growth in #tets");
+  parser.AddFlag("check-accuracy", &s.check_accuracy,
+                 "also solve every timed step by exact Cholesky and by Newton to convergence "
+                 "and report the step's relative errors (slow; not in the timings)");
+  parser.AddFlag("sweep", &sweep,
+                 "also run a series of boxes (--sweep-boxes) and fit the growth exponent of "
+                 "the time per step in the number of tetrahedra");
+  parser.AddString("sweep-boxes", &sweep_boxes, "LIST",
+                   "comma-separated meshes of --sweep; default 540 to 9,600 tetrahedra of the "
+                   "shape of box:20x6x6");
   parser.AddString("json", &json_path, "OUT", "also write the figures to this JSON file");
   parser.SetEpilog(
       "Figures: tets, dofs, ms_per_step_median (wall), cpu_ms_per_step_median (thread CPU\n"
-      "time, robust on a shared machine), *_mean and cpu_ms_per_step_max (they show the\n"
-      "occasional refactorisation of cholmod-pcg), rotation_ms (polar decompositions),\n"
-      "assembly_ms (gradients, Hessian into precomputed slots, Dirichlet rows),\n"
-      "solve_ms (CHOLMOD numeric refactorisation + solve, or warm-started CG),\n"
-      "cg_iterations_mean (0 for CHOLMOD). Run with OMP_NUM_THREADS=1 for one thread.");
+      "time, robust on a shared machine), cpu_us_per_tet, *_mean and cpu_ms_per_step_max\n"
+      "(they include cholmod-pcg's occasional refactorisations), rotation_ms (polar\n"
+      "decompositions), assembly_ms (gradients, Hessian into precomputed slots, Dirichlet\n"
+      "rows), solve_ms (CHOLMOD numeric factorisation + solve, or warm-started CG),\n"
+      "cg_iterations_mean (0 for CHOLMOD), factorizations (numeric, over all timed steps).\n"
+      "--sweep adds \"sweep\" (one entry per mesh) and \"growth_exponent\" to the JSON.\n"
+      "Run with OMP_NUM_THREADS=1 for one thread.");
   if (!parser.Parse(argc, argv)) return 0;
   ARREG_CHECK_INPUT(s.steps >= 1, "", "--steps", "must be >= 1, got ", s.steps);
   ARREG_CHECK_INPUT(s.refactor_iterations >= 0, "", "--refactor-iterations", "must be >= 0, got ",
@@ -253,27 +367,39 @@ int RunBenchMechanics(int argc, char** argv) {
   ARREG_CHECK_INPUT(s.repeats >= 1, "", "--repeats", "must be >= 1, got ", s.repeats);
   ARREG_CHECK_INPUT(s.springs >= 1, "", "--springs", "must be >= 1, got ", s.springs);
   ARREG_CHECK_INPUT(seed >= 0, "", "--seed", "must be >= 0, got ", seed);
+  ARREG_CHECK_INPUT(std::isfinite(s.cg_tolerance) && s.cg_tolerance > 0, "", "--cg-tolerance",
+                    "must be > 0, got ", s.cg_tolerance);
+  ARREG_CHECK_INPUT(s.warm_start == "extrapolate" || s.warm_start == "velocity", "", "--warm-start",
+                    "must be extrapolate or velocity, got '", s.warm_start, "'");
   ParseLinearSolverType(s.solver);
   ParsePreconditioner(s.preconditioner);
   ParseRotationMethod(s.rotation);
   ParseCholmodFactorization(s.factorization);
   s.seed = static_cast<unsigned>(seed);
+  s.refactor_by_cost = !no_cost_refactor;
+  const std::vector<std::string> boxes = SplitCommas(
+      sweep_boxes.empty() ? "box:10x3x3,box:14x4x4,box:17x5x5,box:20x6x6,box:23x7x7,box:25x8x8"
+                          : sweep_boxes);
+  ARREG_CHECK_INPUT(!sweep || boxes.size() >= 2, "", "--sweep-boxes",
+                    "needs at least two meshes, got '", sweep_boxes, "'");
 
-  std::printf("%-28s %-11s %7s %7s %9s %9s %9s %9s %9s %9s %8s %7s\n", "mesh", "solver", "tets",
-              "dofs", "ms/step", "cpu_ms", "cpu_mean", "rot_ms", "asm_ms", "solve_ms", "cg_it",
-              "rot_it");
+  PrintHeader();
   const TetMesh mesh = LoadMesh(mesh_spec);
   const Figures main_figures = RunScene(mesh, s);
   Print(mesh_spec, s, main_figures);
   nlohmann::json out = ToJson(mesh_spec, s, main_figures);
-  if (scaling) {
+  if (sweep) {
     nlohmann::json series = nlohmann::json::array();
-    for (const char* box : {"box:10x3x3", "box:20x6x6", "box:30x9x9", "box:40x12x12"}) {
-      const Figures f = RunScene(LoadMesh(box), s);
-      Print(box, s, f);
-      series.push_back(ToJson(box, s, f));
+    std::vector<Figures> figures;
+    for (const std::string& box : boxes) {
+      figures.push_back(RunScene(LoadMesh(box), s));
+      Print(box, s, figures.back());
+      series.push_back(ToJson(box, s, figures.back()));
     }
-    out["scaling"] = series;
+    const double exponent = GrowthExponent(figures);
+    std::printf("growth exponent (cpu ms per step ~ tets^k, least squares): k = %.2f\n", exponent);
+    out["sweep"] = series;
+    out["growth_exponent"] = exponent;
   }
   if (!json_path.empty())
     WriteFileAtomic(json_path, [&](std::ostream& os) { os << out.dump(2) << "\n"; });

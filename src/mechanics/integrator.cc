@@ -163,6 +163,7 @@ StepSummary ImplicitEulerIntegrator::Step(MechanicalState* state, CorotationalEl
     total.newton_iterations += sub.newton_iterations;
     total.linear_iterations += sub.linear_iterations;
     total.linear_solves += sub.linear_solves;
+    total.factorizations += sub.factorizations;
     total.inverted_elements = sub.inverted_elements;
     total.last_increment_mm = sub.last_increment_mm;
     total.rotation_ms += sub.rotation_ms;
@@ -255,6 +256,7 @@ StepSummary ImplicitEulerIntegrator::SubStep(MechanicalState* state,
     summary.solve_ms += MsSince(t);
     summary.linear_iterations += ls.iterations;
     ++summary.linear_solves;
+    summary.factorizations += ls.numeric_factorization ? 1 : 0;
     ++summary.newton_iterations;
     summary.status = FromLinear(ls);
     if (summary.status != StepStatus::kConverged) {
@@ -310,6 +312,7 @@ StepSummary StaticSolver::Solve(MechanicalState* state, CorotationalElasticity* 
     summary.solve_ms += MsSince(t);
     summary.linear_iterations += ls.iterations;
     ++summary.linear_solves;
+    summary.factorizations += ls.numeric_factorization ? 1 : 0;
     ++summary.newton_iterations;
     if (FromLinear(ls) != StepStatus::kConverged) {
       summary.status = StepStatus::kLinearSolveFailed;

@@ -69,6 +69,7 @@ struct StepSummary {
   int newton_iterations = 0;  // summed over sub-steps
   int linear_iterations = 0;  // CG iterations summed over solves
   int linear_solves = 0;
+  int factorizations = 0;        // numeric Cholesky factorisations (cholmod, cholmod-pcg)
   int inverted_elements = 0;     // det F <= 0 at the last rotation update
   double last_increment_mm = 0;  // max |dy| of the last Newton iteration
   double rotation_ms = 0;        // element rotations (polar decompositions)
