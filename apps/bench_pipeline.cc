@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 
@@ -101,20 +102,30 @@ void Print(const char* title, const Measurement& m) {
 
 int RunBenchPipeline(int argc, char** argv) {
   std::string scene_path, json_path;
-  int repeats = 3, frames = -1;
+  int repeats = 3, frames = -1, crf = -1, max_features = -1, supersampling = 0;
+  double hessian_threshold = -1, min_distance_px = -1;
   bool no_topology = false;
   std::string clock = "wall";
   OptionParser parser(
       "arreg bench pipeline --scene S.json [--json OUT] [options]",
       "Runs the registration of a scene without writing records and prints the median (over "
       "--repeats runs) milliseconds per frame of each stage and the frames per second, with and "
-      "without encoding the overlay video. Single-threaded (decode and encode threads 1). Frame "
-      "0 (detection and attachment) is reported separately.");
+      "without encoding the overlay video. Single-threaded (decoder, encoder and OpenCV on one "
+      "thread). Frame 0 (detection and attachment) is reported separately. The tracking and "
+      "video options below override the scene's (e.g. --hessian-threshold 2 for ~500 features "
+      "on band-stretch).");
   parser.AddString("scene", &scene_path, "S.json", "scene file", true);
   parser.AddString("json", &json_path, "OUT", "also write the figures to this JSON file");
   parser.AddInt("repeats", &repeats, "N", "runs per measurement (median taken)");
   parser.AddInt("frames", &frames, "N", "frames per run (-1: the whole video)");
   parser.AddFlag("no-topology", &no_topology, "without cut detection and handling");
+  parser.AddInt("crf", &crf, "N", "x264 quality of the overlay video (0..51; scene's by default)");
+  parser.AddInt("max-features", &max_features, "N", "tracking.max_features");
+  parser.AddDouble("hessian-threshold", &hessian_threshold, "T",
+                   "tracking.hessian_threshold (lower: more features)");
+  parser.AddDouble("min-distance", &min_distance_px, "PX", "tracking.min_distance_px");
+  parser.AddInt("supersampling", &supersampling, "S",
+                "render.supersampling (1: analytic edge anti-aliasing, >= 2: reference)");
   parser.AddString("clock", &clock, "wall|cpu",
                    "stage times on the wall clock or on the thread's CPU clock (busy machines)");
   if (!parser.Parse(argc, argv)) return 0;
@@ -122,11 +133,20 @@ int RunBenchPipeline(int argc, char** argv) {
   ARREG_CHECK_INPUT(clock == "wall" || clock == "cpu", "", "--clock", "expected wall or cpu, got '",
                     clock, "'");
   const bool cpu = clock == "cpu";
+  // One core: OpenCV's parallel loops (pyramids, colour conversion) would otherwise run on
+  // other threads, outside the thread CPU clock.
+  cv::setNumThreads(1);
 
   const Scene scene = ReadScene(scene_path);
   pipeline::PipelineOptions options = pipeline::ReadPipelineOptions(scene);
   options.max_frames = frames;
   options.output.encode_threads = 1;
+  if (parser.Given("crf")) options.output.crf = crf;
+  if (parser.Given("max-features")) options.tracking.max_features = max_features;
+  if (parser.Given("hessian-threshold"))
+    options.tracking.surf.hessian_threshold = hessian_threshold;
+  if (parser.Given("min-distance")) options.tracking.min_distance_px = min_distance_px;
+  if (parser.Given("supersampling")) options.render.supersampling = supersampling;
   if (no_topology) options.cutting.enabled = false;
   options.Check();
 
@@ -138,9 +158,10 @@ int RunBenchPipeline(int argc, char** argv) {
 
   std::printf(
       "scene %s: %dx%d, %d frames, %.0f alive features on average, topology %s, "
-      "%d repeats\n",
+      "%d repeats, %s clock, x264 %s crf %d, render supersampling %d\n",
       scene_path.c_str(), scene.camera.width, scene.camera.height, with_video.frames,
-      with_video.mean_features, options.cutting.enabled ? "on" : "off", repeats, clock.c_str());
+      with_video.mean_features, options.cutting.enabled ? "on" : "off", repeats, clock.c_str(),
+      options.output.preset.c_str(), options.output.crf, options.render.supersampling);
   Print("with overlay video (end to end):", with_video);
   Print("without video encoding:", without_video);
   Print("without rendering and encoding:", without_render);
@@ -154,6 +175,11 @@ int RunBenchPipeline(int argc, char** argv) {
     out["repeats"] = repeats;
     out["clock"] = clock;
     out["topology"] = options.cutting.enabled;
+    out["crf"] = options.output.crf;
+    out["preset"] = options.output.preset;
+    out["supersampling"] = options.render.supersampling;
+    out["max_features"] = options.tracking.max_features;
+    out["hessian_threshold"] = options.tracking.surf.hessian_threshold;
     out["with_video"] = Report(with_video);
     out["without_video"] = Report(without_video);
     out["without_render"] = Report(without_render);

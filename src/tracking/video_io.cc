@@ -560,10 +560,17 @@ void VideoWriter::Open(const std::string& path, int width, int height, double fp
         ARREG_CHECK_INPUT(r >= 0, "", "VideoWriterOptions.preset", "encoder '", options.codec,
                           "' rejects preset '", options.preset, "'");
       }
+      if (!options.tune.empty() && av_opt_find(d.encoder->priv_data, "tune", nullptr, 0, 0)) {
+        r = av_opt_set(d.encoder->priv_data, "tune", options.tune.c_str(), 0);
+        ARREG_CHECK_INPUT(r >= 0, "", "VideoWriterOptions.tune", "encoder '", options.codec,
+                          "' rejects tune '", options.tune, "'");
+      }
     }
     r = avcodec_open2(d.encoder, codec, nullptr);
+    // x264 checks its preset and tune only here.
     ARREG_CHECK_INPUT(r >= 0, path, "", "cannot open encoder '", options.codec, "' for ", width,
-                      "x", height, " ", options.pixel_format, ": ", AvErrorString(r));
+                      "x", height, " ", options.pixel_format, " (preset '", options.preset,
+                      "', tune '", options.tune, "'): ", AvErrorString(r));
     r = avcodec_parameters_from_context(d.stream->codecpar, d.encoder);
     ARREG_ASSERT(r >= 0, "");
     d.stream->time_base = d.encoder->time_base;

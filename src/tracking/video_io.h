@@ -75,6 +75,9 @@ struct VideoWriterOptions {
   int crf = 18;
   // x264 speed preset (default "veryfast").
   std::string preset = "veryfast";
+  // x264 tuning, e.g. "zerolatency" (no frame delay: no lookahead, no B-frames); empty (the
+  // default) keeps the preset's settings.
+  std::string tune;
   // FFmpeg encoder name (default "libx264").
   std::string codec = "libx264";
   // Pixel format of the encoded stream (default "yuv420p", which players expect).

@@ -79,6 +79,38 @@ TEST_P(VideoRoundTrip, CountSizeFpsAndPsnr) {
 
 INSTANTIATE_TEST_SUITE_P(Containers, VideoRoundTrip, ::testing::Values("mp4", "mkv", "avi"));
 
+// The overlay's encoder settings (x264 ultrafast, zerolatency): every frame comes back, faithfully.
+TEST(VideoWriter, UltrafastZerolatencyRoundTrip) {
+  const std::string dir = testing::ScratchDir("video_zerolatency");
+  VideoWriterOptions options;
+  options.preset = "ultrafast";
+  options.tune = "zerolatency";
+  options.crf = 23;
+  options.encode_threads = 1;
+  VideoWriter writer;
+  writer.Open(dir + "/clip.mp4", 320, 240, 25.0, options);
+  for (int i = 0; i < 12; ++i) writer.Write(SyntheticFrame(i, 320, 240));
+  writer.Close();
+  VideoReader reader;
+  reader.Open(dir + "/clip.mp4");
+  cv::Mat bgr;
+  int count = 0;
+  double worst_psnr = 1e9;
+  while (reader.Read(&bgr))
+    worst_psnr = std::min(worst_psnr, cv::PSNR(bgr, SyntheticFrame(count++, 320, 240)));
+  EXPECT_EQ(count, 12);
+  EXPECT_GT(worst_psnr, 33.0);
+
+  options.tune = "no-such-tune";
+  VideoWriter bad;
+  try {
+    bad.Open(dir + "/bad.mp4", 320, 240, 25.0, options);
+    ADD_FAILURE() << "an unknown tune must be rejected";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("tune 'no-such-tune'"), std::string::npos) << e.what();
+  }
+}
+
 TEST(VideoReader, GrayFromLumaMatchesConvertedColour) {
   const std::string dir = testing::ScratchDir("video_gray");
   const std::string path = WriteClip(dir + "/clip.mp4", 5, 160, 120, 30.0);

@@ -85,45 +85,50 @@ void OverlayRenderer::RenderCoverage(const render::PixelRect& box,
                                      const std::vector<OverlayStructure>& internal, cv::Mat* bgr) {
   internal_layer_.Clear(box);
   organ_layer_.Clear(box);
-  bool any_internal = false;
   for (const OverlayStructure& s : internal) {
     if (!Visible(s)) continue;
     ShadeVertices(*s.vertices_mm, *s.faces, s.color.cast<float>());
     render::CoverageDrawOptions draw;
     draw.opacity = static_cast<float>(std::min(1.0, s.opacity));
-    any_internal =
-        internal_layer_.Draw(*s.vertices_mm, *s.faces, vertex_rgb_, draw) > 0 || any_internal;
+    internal_layer_.Draw(*s.vertices_mm, *s.faces, vertex_rgb_, draw);
   }
-  bool any_organ = false;
   if (options_.organ_opacity > 0) {
     ShadeVertices(organ_vertices_mm, organ_faces, options_.organ_color.cast<float>());
     render::CoverageDrawOptions draw;
     draw.opacity = static_cast<float>(std::min(1.0, options_.organ_opacity));
     draw.cull_back_faces = true;  // the near side only: structures behind it show through
-    any_organ = organ_layer_.Draw(organ_vertices_mm, organ_faces, vertex_rgb_, draw) > 0;
+    organ_layer_.Draw(organ_vertices_mm, organ_faces, vertex_rgb_, draw);
   }
-  if (!any_internal && !any_organ) return;
   // Composite: the internal layer over the frame, the organ over both, unless a structure
   // lies in front of the organ's surface (it pokes out), which then goes on top.
+  using Pixel = render::CoverageLayer::Pixel;
   for (int y = box.y0; y < box.y1; ++y) {
-    auto* row = bgr->ptr<cv::Vec3b>(y);
-    for (int x = box.x0; x < box.x1; ++x) {
-      const float ai = internal_layer_.alpha(x, y), ao = organ_layer_.alpha(x, y);
-      if (ai == 0 && ao == 0) continue;
-      cv::Vec3b& px = row[x];
-      Eigen::Vector3f rgb(px[2] * (1.0f / 255), px[1] * (1.0f / 255), px[0] * (1.0f / 255));
-      const bool structure_on_top =
-          ai > 0 && ao > 0 &&
-          internal_layer_.inverse_depth(x, y) > organ_layer_.inverse_depth(x, y);
-      if (structure_on_top) {
-        rgb += ao * (organ_layer_.rgb(x, y) - rgb);
-        rgb += ai * (internal_layer_.rgb(x, y) - rgb);
+    const int x0 = std::min(internal_layer_.row_begin(y), organ_layer_.row_begin(y));
+    const int x1 = std::max(internal_layer_.row_end(y), organ_layer_.row_end(y));
+    auto* out = bgr->ptr<cv::Vec3b>(y);
+    const Pixel* in_row = internal_layer_.row(y);
+    const Pixel* organ_row = organ_layer_.row(y);
+    for (int x = x0; x < x1; ++x) {
+      const Pixel& s = in_row[x];
+      const Pixel& o = organ_row[x];
+      if (s.alpha == 0 && o.alpha == 0) continue;
+      cv::Vec3b& px = out[x];
+      float r = px[2] * (1.0f / 255), g = px[1] * (1.0f / 255), b = px[0] * (1.0f / 255);
+      const auto over = [&](const Pixel& p) {
+        r += p.alpha * (p.r - r);
+        g += p.alpha * (p.g - g);
+        b += p.alpha * (p.b - b);
+      };
+      if (s.alpha > 0 && o.alpha > 0 && s.inv_depth > o.inv_depth) {
+        over(o);
+        over(s);
       } else {
-        if (ai > 0) rgb += ai * (internal_layer_.rgb(x, y) - rgb);
-        if (ao > 0) rgb += ao * (organ_layer_.rgb(x, y) - rgb);
+        over(s);  // alpha 0 leaves the colour as it is
+        over(o);
       }
-      for (int c = 0; c < 3; ++c)
-        px[2 - c] = static_cast<uchar>(255.0f * std::clamp(rgb[c], 0.0f, 1.0f) + 0.5f);
+      px[0] = static_cast<uchar>(255.0f * std::clamp(b, 0.0f, 1.0f) + 0.5f);
+      px[1] = static_cast<uchar>(255.0f * std::clamp(g, 0.0f, 1.0f) + 0.5f);
+      px[2] = static_cast<uchar>(255.0f * std::clamp(r, 0.0f, 1.0f) + 0.5f);
     }
   }
 }

@@ -283,6 +283,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     VideoWriterOptions wo;
     wo.crf = o.output.crf;
     wo.preset = o.output.preset;
+    wo.tune = "zerolatency";  // each frame is encoded as it comes (no lookahead, no B-frames)
     wo.encode_threads = o.output.encode_threads;
     const std::string parent =
         std::filesystem::path(run_options.overlay_video_path).parent_path().string();

@@ -36,21 +36,29 @@ void CoverageDrawOptions::Check() const {
 
 CoverageLayer::CoverageLayer(const RasterCamera& camera) : camera_(camera) {
   camera_.Check();
-  pixels_.reserve(static_cast<size_t>(camera_.width) * camera_.height);
+  pixels_.assign(static_cast<size_t>(camera_.width) * camera_.height, Pixel{0, 0, 0, 0, 0});
+  row_begin_.assign(camera_.height, camera_.width);
+  row_end_.assign(camera_.height, 0);
 }
 
 void CoverageLayer::Clear(const PixelRect& rect) {
+  for (int y = 0; y < camera_.height; ++y) {
+    if (row_begin_[y] < row_end_[y])
+      std::fill(pixels_.begin() + Index(row_begin_[y], y), pixels_.begin() + Index(row_end_[y], y),
+                Pixel{0, 0, 0, 0, 0});
+    row_begin_[y] = camera_.width;
+    row_end_[y] = 0;
+  }
   rect_.x0 = std::clamp(rect.x0, 0, camera_.width);
   rect_.x1 = std::clamp(rect.x1, rect_.x0, camera_.width);
   rect_.y0 = std::clamp(rect.y0, 0, camera_.height);
   rect_.y1 = std::clamp(rect.y1, rect_.y0, camera_.height);
-  pixels_.resize(static_cast<size_t>(rect_.width()) * rect_.height());
-  std::fill(pixels_.begin(), pixels_.end(), Pixel{0, 0, 0, 0, 0});
 }
 
 double CoverageLayer::CoveredArea() const {
   double sum = 0;
-  for (const Pixel& p : pixels_) sum += p.alpha;
+  for (int y = 0; y < camera_.height; ++y)
+    for (int x = row_begin_[y]; x < row_end_[y]; ++x) sum += pixel(x, y).alpha;
   return sum;
 }
 
@@ -232,8 +240,8 @@ int64_t CoverageLayer::DrawTriangle(const Vertex v_in[3], const bool smooth_in[3
     row_e[e] = (fx[b] - fx[a]) * (y0 * static_cast<int64_t>(kSubpixel) - fy[a]) -
                (fy[b] - fy[a]) * (x0 * static_cast<int64_t>(kSubpixel) - fx[a]);
   }
+  const float inv_area = static_cast<float>(1.0 / static_cast<double>(area));
   int64_t written = 0;
-  const int stride = rect_.width();
   for (int y = y0; y <= y1; ++y) {
     // The row's span where every edge passes its test, solved exactly in integers.
     int64_t lo = x0, hi = x1;
@@ -247,17 +255,21 @@ int64_t CoverageLayer::DrawTriangle(const Vertex v_in[3], const bool smooth_in[3
         hi = lo - 1;
     }
     if (lo <= hi) {
-      Pixel* row = pixels_.data() + static_cast<size_t>(y - rect_.y0) * stride;
+      Pixel* row = &pixels_[Index(0, y)];
+      row_begin_[y] = std::min(row_begin_[y], static_cast<int>(lo));
+      row_end_[y] = std::max(row_end_[y], static_cast<int>(hi) + 1);
       int64_t e_at[3];
       for (int e = 0; e < 3; ++e) e_at[e] = row_e[e] + step_x[e] * (lo - x0);
       for (int64_t x = lo; x <= hi; ++x) {
         float coverage = opacity, weight_sum = 0, inv_depth = 0;
+        bool clamped = false;
         Eigen::Vector3f rgb = Eigen::Vector3f::Zero();
         for (int e = 0; e < 3; ++e) {
           const float value = static_cast<float>(e_at[e]);
           if (smooth[e]) coverage *= std::min(1.0f, 0.5f + value * to_distance[e]);
           // Outside samples of the anti-aliased fringe take the colour and depth on the edge.
-          const float w = std::max(0.0f, value);
+          const float w = value > 0 ? value : 0.0f;
+          clamped |= value < 0;
           const float wz = w * opposite_inv_z[e];
           weight_sum += w;
           inv_depth += wz;
@@ -265,9 +277,10 @@ int64_t CoverageLayer::DrawTriangle(const Vertex v_in[3], const bool smooth_in[3
           e_at[e] += step_x[e];
         }
         if (inv_depth <= 0) continue;
-        rgb /= inv_depth;  // perspective-correct Gouraud
-        inv_depth /= weight_sum;
-        Pixel& p = row[x - rect_.x0];
+        rgb *= 1.0f / inv_depth;  // perspective-correct Gouraud
+        // The weights sum to the area inside the triangle; not where the fringe clamped them.
+        inv_depth *= clamped ? 1.0f / weight_sum : inv_area;
+        Pixel& p = row[x];
         if (p.alpha == 0) {
           p = Pixel{coverage, inv_depth, rgb.x(), rgb.y(), rgb.z()};
         } else if (inv_depth >= p.inv_depth) {  // in front of what is there

@@ -41,13 +41,21 @@ struct CoverageDrawOptions {
 //
 // Costs: one sample per pixel, fixed-point (1/256 px) edge functions evaluated
 // incrementally over each triangle's row spans, Gouraud colours interpolated
-// perspective-correctly; no allocation after the first frames (buffers are kept).
+// perspective-correctly; no allocation after the first frames (buffers are kept); clearing
+// and compositing visit only the row spans drawn.
 class CoverageLayer {
  public:
+  struct Pixel {
+    float alpha;      // 0: empty
+    float inv_depth;  // 1 / camera z (larger is nearer)
+    float r, g, b;    // linear RGB
+  };
+
+  // Allocates (and empties) buffers for the whole image once.
   explicit CoverageLayer(const RasterCamera& camera);
 
-  // Empties `rect` (clipped to the image) and makes it the layer's area; draws outside it are
-  // discarded.
+  // Empties the pixels drawn since the last Clear (cost follows their number, not the image
+  // size) and makes `rect` (clipped to the image) the area later draws are clipped to.
   void Clear(const PixelRect& rect);
 
   // Draws a triangle mesh: vertices_in_world (#V x 3), faces (#F x 3, counter-clockwise seen
@@ -59,22 +67,23 @@ class CoverageLayer {
 
   const RasterCamera& camera() const { return camera_; }
   const PixelRect& rect() const { return rect_; }
-  // Pixel (x, y) in image coordinates, inside rect().
-  float alpha(int x, int y) const { return At(x, y).alpha; }
-  float inverse_depth(int x, int y) const { return At(x, y).inv_depth; }
+  // Pixel (x, y) of the image (empty outside what was drawn).
+  const Pixel& pixel(int x, int y) const { return pixels_[Index(x, y)]; }
+  float alpha(int x, int y) const { return pixel(x, y).alpha; }
+  float inverse_depth(int x, int y) const { return pixel(x, y).inv_depth; }
   Eigen::Vector3f rgb(int x, int y) const {
-    const Pixel& p = At(x, y);
+    const Pixel& p = pixel(x, y);
     return Eigen::Vector3f(p.r, p.g, p.b);
   }
-  // Sum of alpha over rect() (coverage area in pixels at opacity 1).
+  // Image row y and the columns [row_begin(y), row_end(y)) drawn in it since the last Clear
+  // (an empty range when none).
+  const Pixel* row(int y) const { return &pixels_[Index(0, y)]; }
+  int row_begin(int y) const { return row_begin_[y]; }
+  int row_end(int y) const { return row_end_[y]; }
+  // Sum of alpha over the image (coverage area in pixels at opacity 1).
   double CoveredArea() const;
 
  private:
-  struct Pixel {
-    float alpha;      // 0: empty
-    float inv_depth;  // 1 / camera z (larger is nearer)
-    float r, g, b;
-  };
   struct Vertex {  // a (possibly clipped) triangle corner
     Eigen::Vector3d p_cam;
     Eigen::Vector3f rgb;
@@ -85,15 +94,14 @@ class CoverageLayer {
     std::vector<int> neighbour;  // (#F x 3) face across edge (k, k+1), -1: none or non-manifold
   };
 
-  const Pixel& At(int x, int y) const {
-    return pixels_[static_cast<size_t>(y - rect_.y0) * rect_.width() + (x - rect_.x0)];
-  }
+  size_t Index(int x, int y) const { return static_cast<size_t>(y) * camera_.width + x; }
   const Adjacency& AdjacencyOf(const RowMatX3i& faces);
   int64_t DrawTriangle(const Vertex v[3], const bool smooth_edge[3], float opacity);
 
   RasterCamera camera_;
   PixelRect rect_;
-  std::vector<Pixel> pixels_;  // rect_ row-major, capacity for the whole image
+  std::vector<Pixel> pixels_;             // the whole image, row-major
+  std::vector<int> row_begin_, row_end_;  // per row: columns drawn since the last Clear
   // Scratch kept between calls.
   std::vector<Eigen::Vector3d> p_cam_;
   std::vector<signed char> facing_;  // per face: 1 front, -1 back, 0 degenerate
