@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <limits>
+#include <map>
 #include <ostream>
 
 #include <opencv2/imgcodecs.hpp>
@@ -51,8 +54,32 @@ void SpecularOptions::Check() const {
                     "must be in 0..32, got ", radius_px);
 }
 
+void ReidentifyOptions::Check() const {
+  ARREG_CHECK_INPUT(every_frames >= 1, "", "ReidentifyOptions.every_frames", "must be >= 1, got ",
+                    every_frames);
+  ARREG_CHECK_INPUT(max_lost_frames >= 1, "", "ReidentifyOptions.max_lost_frames",
+                    "must be >= 1, got ", max_lost_frames);
+  ARREG_CHECK_INPUT(neighbours >= 1, "", "ReidentifyOptions.neighbours", "must be >= 1, got ",
+                    neighbours);
+  ARREG_CHECK_INPUT(min_neighbours >= 1 && min_neighbours <= neighbours, "",
+                    "ReidentifyOptions.min_neighbours", "must be in 1..neighbours, got ",
+                    min_neighbours);
+  ARREG_CHECK_INPUT(gate_px > 0, "", "ReidentifyOptions.gate_px", "must be > 0, got ", gate_px);
+  ARREG_CHECK_INPUT(max_descriptor_distance > 0 && max_descriptor_distance <= 2, "",
+                    "ReidentifyOptions.max_descriptor_distance", "must be in (0, 2], got ",
+                    max_descriptor_distance);
+  ARREG_CHECK_INPUT(ratio > 0 && ratio <= 1, "", "ReidentifyOptions.ratio",
+                    "must be in (0, 1], got ", ratio);
+  ARREG_CHECK_INPUT(max_scale_factor >= 1, "", "ReidentifyOptions.max_scale_factor",
+                    "must be >= 1, got ", max_scale_factor);
+  ARREG_CHECK_INPUT(min_patch_correlation >= -1 && min_patch_correlation <= 1, "",
+                    "ReidentifyOptions.min_patch_correlation", "must be in [-1, 1], got ",
+                    min_patch_correlation);
+}
+
 void FeatureTrackerOptions::Check() const {
   surf.Check();
+  reidentify.Check();
   lk.Check();
   outliers.Check();
   specular.Check();
@@ -367,14 +394,255 @@ int FeatureTracker::Detect(const cv::Mat& roi_mask) {
     const int id = store_.Add(accepted[i], descriptors.row(static_cast<int>(i)));
     store_.Record(id, {frame_, accepted[i].position_px, TrackStatus::kTracked});
     current_.push_back({id, accepted[i].position_px, cv::Point2f(0, 0), TrackStatus::kTracked});
+    previous_position_.push_back(accepted[i].position_px);
   }
   return static_cast<int>(accepted.size());
+}
+
+namespace {
+
+// The side x side patch of a CV_32F image (padded by at least side / 2 + 1
+// around its rows/cols, as LucasKanadePyramid levels are) centred at p,
+// sampled bilinearly, row by row.
+void SamplePatch(const cv::Mat& image, cv::Point2f p, int side, std::vector<float>* patch) {
+  patch->resize(static_cast<size_t>(side) * side);
+  const float x0 = p.x - side / 2, y0 = p.y - side / 2;
+  const int ix = static_cast<int>(std::floor(x0)), iy = static_cast<int>(std::floor(y0));
+  const float fx = x0 - ix, fy = y0 - iy;
+  const ptrdiff_t step = static_cast<ptrdiff_t>(image.step[0] / sizeof(float));
+  for (int r = 0; r < side; ++r) {
+    const float* a = image.ptr<float>() + (iy + r) * step + ix;
+    const float* b = a + step;
+    for (int c = 0; c < side; ++c)
+      (*patch)[r * side + c] =
+          (1 - fy) * ((1 - fx) * a[c] + fx * a[c + 1]) + fy * ((1 - fx) * b[c] + fx * b[c + 1]);
+  }
+}
+
+// Normalised cross-correlation of two patches of the same size (0 when flat).
+double Correlation(const std::vector<float>& a, const std::vector<float>& b) {
+  const size_t n = a.size();
+  double ma = 0, mb = 0;
+  for (size_t i = 0; i < n; ++i) ma += a[i], mb += b[i];
+  ma /= n, mb /= n;
+  double ab = 0, aa = 0, bb = 0;
+  for (size_t i = 0; i < n; ++i) {
+    ab += (a[i] - ma) * (b[i] - mb);
+    aa += (a[i] - ma) * (a[i] - ma);
+    bb += (b[i] - mb) * (b[i] - mb);
+  }
+  return aa > 0 && bb > 0 ? ab / std::sqrt(aa * bb) : 0.0;
+}
+
+}  // namespace
+
+void FeatureTracker::RememberLost() {
+  for (int i = 0; i < static_cast<int>(current_.size()); ++i) {
+    const TrackStatus status = current_[i].status;
+    // Outliers moved implausibly: they are dropped for good (thesis 7.4.1).
+    if (status == TrackStatus::kTracked || status == TrackStatus::kOutlierSpatioTemporal) continue;
+    // Where it was last followed (the frame before): LK's position in this
+    // frame is what failed. Its look there verifies a re-identification.
+    LostFeature lost{current_[i].id, frame_, previous_position_[i], {}};
+    SamplePatch(previous_pyramid_.float_image(0), lost.position_px, options_.lk.window_px,
+                &lost.patch);
+    lost_.push_back(std::move(lost));
+  }
+}
+
+void FeatureTracker::SyncReferenceDescriptors() {
+  // Features detected since: their reference is the descriptor at detection.
+  const int known = reference_descriptors_.rows;
+  if (known < store_.num_features())
+    reference_descriptors_.push_back(store_.descriptors().rowRange(known, store_.num_features()));
+}
+
+void FeatureTracker::RefreshDescriptors() {
+  std::vector<SurfKeypoint> keypoints;
+  std::vector<int> ids;
+  for (const FeatureState& f : current_) {
+    if (f.status != TrackStatus::kTracked) continue;
+    SurfKeypoint kp = store_.keypoint(f.id);
+    kp.position_px = f.position_px;
+    keypoints.push_back(kp);
+    ids.push_back(f.id);
+  }
+  if (keypoints.empty()) return;
+  if (!options_.surf.upright) surf_.ComputeOrientations(&keypoints);
+  cv::Mat descriptors;
+  surf_.Describe(keypoints, &descriptors);
+  SyncReferenceDescriptors();
+  for (size_t k = 0; k < ids.size(); ++k)
+    descriptors.row(static_cast<int>(k)).copyTo(reference_descriptors_.row(ids[k]));
+}
+
+int FeatureTracker::Reidentify(const cv::Mat& roi_mask) {
+  const ReidentifyOptions& o = options_.reidentify;
+  lost_.erase(std::remove_if(
+                  lost_.begin(), lost_.end(),
+                  [&](const LostFeature& f) { return frame_ - f.lost_frame > o.max_lost_frames; }),
+              lost_.end());
+  if (lost_.empty()) return 0;
+  SyncReferenceDescriptors();
+
+  // Where each waiting feature should be now: moved like the features that
+  // were nearest to it at the loss and are tracked both then and now.
+  std::vector<int> tracked;
+  for (int i = 0; i < static_cast<int>(current_.size()); ++i)
+    if (current_[i].status == TrackStatus::kTracked) tracked.push_back(i);
+  // Per loss frame: (position in the frame before the loss, position now).
+  std::map<int, std::vector<std::pair<cv::Point2f, cv::Point2f>>> then_and_now;
+  auto anchors_for =
+      [&](int lost_frame) -> const std::vector<std::pair<cv::Point2f, cv::Point2f>>& {
+    auto [it, inserted] = then_and_now.try_emplace(lost_frame);
+    if (inserted) {
+      for (int i : tracked) {
+        const std::vector<TrackObservation>& h = store_.history(current_[i].id);
+        const auto at =
+            std::lower_bound(h.begin(), h.end(), lost_frame - 1,
+                             [](const TrackObservation& o, int frame) { return o.frame < frame; });
+        if (at != h.end() && at->frame == lost_frame - 1 && at->status == TrackStatus::kTracked)
+          it->second.emplace_back(at->position_px, current_[i].position_px);
+      }
+    }
+    return it->second;
+  };
+  const float border = static_cast<float>(options_.border_px);
+  std::vector<cv::Point2f> predicted(lost_.size());
+  std::vector<int> waiting;  // indices into lost_ with a usable prediction
+  std::vector<std::pair<float, int>> by_distance;
+  for (int l = 0; l < static_cast<int>(lost_.size()); ++l) {
+    const LostFeature& f = lost_[l];
+    const auto& anchors = anchors_for(f.lost_frame);
+    if (static_cast<int>(anchors.size()) < o.min_neighbours) continue;
+    by_distance.clear();
+    for (int a = 0; a < static_cast<int>(anchors.size()); ++a) {
+      const cv::Point2f d = anchors[a].first - f.position_px;
+      by_distance.emplace_back(d.dot(d), a);
+    }
+    const int k = std::min<int>(o.neighbours, static_cast<int>(by_distance.size()));
+    std::partial_sort(by_distance.begin(), by_distance.begin() + k, by_distance.end());
+    cv::Point2f shift(0, 0);
+    for (int m = 0; m < k; ++m) {
+      const auto& [then, now] = anchors[by_distance[m].second];
+      shift += now - then;
+    }
+    const cv::Point2f q = f.position_px + shift * (1.f / k);
+    if (q.x < border || q.y < border || q.x > gray_.cols - 1 - border ||
+        q.y > gray_.rows - 1 - border || !InsideRoi(q, roi_mask))
+      continue;
+    predicted[l] = q;
+    waiting.push_back(l);
+  }
+  if (waiting.empty()) return 0;
+
+  // Fresh SURF points near a prediction and away from the followed features.
+  std::vector<SurfKeypoint> detected, near;
+  surf_.Detect(roi_mask, &detected);
+  const float gate = static_cast<float>(o.gate_px), wide = 2 * gate;
+  const float min_distance = static_cast<float>(options_.min_distance_px);
+  for (const SurfKeypoint& kp : detected) {
+    bool close = false;
+    for (int l : waiting) {
+      const cv::Point2f d = kp.position_px - predicted[l];
+      if (d.dot(d) <= wide * wide) {
+        close = true;
+        break;
+      }
+    }
+    if (!close) continue;
+    bool taken = false;
+    for (const FeatureState& f : current_) {
+      const cv::Point2f d = kp.position_px - f.position_px;
+      if (f.status == TrackStatus::kTracked && d.dot(d) < min_distance * min_distance) {
+        taken = true;
+        break;
+      }
+    }
+    if (!taken) near.push_back(kp);
+  }
+  if (near.empty()) return 0;
+  if (!options_.surf.upright) surf_.ComputeOrientations(&near);
+  cv::Mat descriptors;
+  surf_.Describe(near, &descriptors);
+
+  // Best candidate inside the gate (descriptor distance, scale), checked by the
+  // ratio test against every point within twice the gate.
+  struct Match {
+    float distance;
+    int lost_index, keypoint;
+  };
+  std::vector<Match> matches;
+  const float max_log_scale = static_cast<float>(std::log(o.max_scale_factor));
+  std::vector<float> patch;
+  for (int l : waiting) {
+    const int id = lost_[l].id;
+    const cv::Mat reference = reference_descriptors_.row(id);
+    const float reference_scale = store_.keypoint(id).scale_px;
+    const int8_t reference_sign = store_.keypoint(id).laplacian_sign;
+    float best = std::numeric_limits<float>::max(), second = best;
+    int best_k = -1;
+    for (int k = 0; k < static_cast<int>(near.size()); ++k) {
+      const cv::Point2f d = near[k].position_px - predicted[l];
+      const float d2 = d.dot(d);
+      if (d2 > wide * wide) continue;
+      const float distance = static_cast<float>(cv::norm(reference, descriptors.row(k)));
+      const bool eligible = d2 <= gate * gate && near[k].laplacian_sign == reference_sign &&
+                            std::abs(std::log(near[k].scale_px / reference_scale)) <= max_log_scale;
+      if (eligible && distance < best) {
+        second = std::min(second, best);
+        best = distance;
+        best_k = k;
+      } else {
+        second = std::min(second, distance);
+      }
+    }
+    if (best_k < 0 || best > o.max_descriptor_distance) continue;
+    if (second < std::numeric_limits<float>::max() && best >= o.ratio * second) continue;
+    SamplePatch(pyramid_.float_image(0), near[best_k].position_px, options_.lk.window_px, &patch);
+    if (Correlation(patch, lost_[l].patch) < o.min_patch_correlation) continue;
+    matches.push_back({best, l, best_k});
+  }
+  // One point per feature, the closest descriptors first; found features keep
+  // min_distance_px from each other like detected ones.
+  std::sort(matches.begin(), matches.end(),
+            [](const Match& a, const Match& b) { return a.distance < b.distance; });
+  std::vector<uint8_t> used_keypoint(near.size(), 0), found(lost_.size(), 0);
+  std::vector<cv::Point2f> placed;
+  int count = 0;
+  for (const Match& m : matches) {
+    if (used_keypoint[m.keypoint]) continue;
+    const cv::Point2f p = near[m.keypoint].position_px;
+    bool crowded = false;
+    for (const cv::Point2f& q : placed)
+      if ((p - q).dot(p - q) < min_distance * min_distance) crowded = true;
+    if (crowded) continue;
+    used_keypoint[m.keypoint] = 1;
+    found[m.lost_index] = 1;
+    placed.push_back(p);
+    const int id = lost_[m.lost_index].id;
+    current_.push_back({id, p, cv::Point2f(0, 0), TrackStatus::kTracked});
+    previous_position_.push_back(p);
+    store_.Record(id, {frame_, p, TrackStatus::kTracked, true});
+    ++count;
+  }
+  int kept = 0;
+  for (int l = 0; l < static_cast<int>(lost_.size()); ++l) {
+    if (found[l]) continue;
+    if (kept != l) lost_[kept] = std::move(lost_[l]);  // never self-move: it empties the patch
+    ++kept;
+  }
+  lost_.resize(kept);
+  return count;
 }
 
 TrackFrameSummary FeatureTracker::Initialize(const cv::Mat& image, const cv::Mat& roi_mask) {
   frame_ = 0;
   store_ = TrackStore();
   current_.clear();
+  previous_position_.clear();
+  lost_.clear();
+  reference_descriptors_.release();
   PrepareFrame(image, roi_mask);
   TrackFrameSummary summary;
   summary.frame = 0;
@@ -395,6 +663,8 @@ TrackFrameSummary FeatureTracker::Track(const cv::Mat& image, const cv::Mat& roi
   for (const FeatureState& f : current_)
     if (f.status == TrackStatus::kTracked) active.push_back(f);
   current_.swap(active);
+  previous_position_.resize(current_.size());
+  for (size_t i = 0; i < current_.size(); ++i) previous_position_[i] = current_[i].position_px;
 
   TrackFrameSummary summary;
   summary.frame = frame_;
@@ -463,6 +733,14 @@ TrackFrameSummary FeatureTracker::Track(const cv::Mat& image, const cv::Mat& roi
           current_[candidates_[j]].status = TrackStatus::kOutlierSpatioTemporal;
     }
     for (const FeatureState& f : current_) store_.Record(f.id, {frame_, f.position_px, f.status});
+  }
+  if (options_.reidentify.enabled) {
+    RememberLost();
+    if (frame_ % options_.reidentify.every_frames == 0) {
+      surf_.SetImage(gray_);
+      summary.num_reidentified = Reidentify(roi_mask);
+      RefreshDescriptors();
+    }
   }
   if (options_.redetect_every_frames > 0 && frame_ % options_.redetect_every_frames == 0)
     summary.num_new = Detect(roi_mask);

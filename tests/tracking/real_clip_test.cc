@@ -68,36 +68,52 @@ TEST(RealClip, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
               first.num_active, still_tracked, 100.0 * still_tracked / first.num_active, on_grasper,
               grasper_dropped);
   EXPECT_GE(on_grasper, 10) << "the grasper is textured; SURF finds points on it";
-  // The issue asks for >= 50 % survivors. NOT MET (9 %, see docs/tracking.md,
-  // "Real clip"): by a Farneback flow chain, 114 of the 276 tissue features end
-  // under the grasper at frame 62 and 76 more are on it, so at most 46 % could
-  // survive correctly; of the 162 that stay visible, 33 survive. Guarded here is
-  // what holds, so that a regression shows:
-  EXPECT_GE(still_tracked, 0.05 * first.num_active);
+  // The issue asks for >= 50 % survivors. NOT MET (11.6 %, see docs/tracking.md,
+  // "Real clip"): the grasper sweeps over the left tissue and stretches and covers
+  // the upper tissue; lost features come back only by re-identification, which
+  // the deformation during the occlusion limits. Guarded here is what holds, so
+  // that a regression shows:
+  EXPECT_GE(still_tracked, 0.09 * first.num_active);
 
-  // The survivors have not drifted: followed back from the last frame to frame 0
-  // (LK frame by frame, independent of the tracker's own chain) they return to
-  // where they were detected.
+  // The survivors have not drifted: followed back from the last frame (LK
+  // frame by frame, independent of the tracker's own chain) to where they were
+  // last acquired -- detected in frame 0, or re-identified after a loss (a
+  // chain through the occlusion cannot exist) -- they return to that position.
   std::vector<cv::Point2f> from_end, at_start;
-  for (int id = 0; id < store.num_features(); ++id)
-    if (store.first_frame(id) == 0 && store.last_status(id) == TrackStatus::kTracked) {
-      from_end.push_back(store.history(id).back().position_px);
-      at_start.push_back(store.history(id).front().position_px);
-    }
+  std::vector<int> start_frame;
+  int reidentified = 0;
+  for (int id = 0; id < store.num_features(); ++id) {
+    if (store.first_frame(id) != 0 || store.last_status(id) != TrackStatus::kTracked) continue;
+    const std::vector<TrackObservation>& h = store.history(id);
+    size_t start = 0;
+    for (size_t k = 0; k < h.size(); ++k)
+      if (h[k].reidentified) start = k;
+    reidentified += start > 0;
+    from_end.push_back(h.back().position_px);
+    at_start.push_back(h[start].position_px);
+    start_frame.push_back(h[start].frame);
+  }
+  std::printf("survivors %zu, of them re-identified after a loss %d\n", from_end.size(),
+              reidentified);
   ASSERT_FALSE(from_end.empty());
   std::vector<uint8_t> ok(from_end.size(), 1);
+  std::vector<cv::Point2f> returned = from_end;
   for (int f = frames - 1; f > 0; --f) {
     std::vector<cv::Point2f> next;
     std::vector<uint8_t> status;
     std::vector<float> error;
     cv::calcOpticalFlowPyrLK(grey[f], grey[f - 1], from_end, next, status, error, cv::Size(21, 21),
                              3);
-    for (size_t i = 0; i < ok.size(); ++i) ok[i] &= status[i];
+    for (size_t i = 0; i < ok.size(); ++i) {
+      if (f <= start_frame[i]) continue;  // arrived already
+      ok[i] &= status[i];
+      returned[i] = next[i];
+    }
     from_end = next;
   }
   std::vector<double> round_trip_px;
   for (size_t i = 0; i < ok.size(); ++i)
-    if (ok[i]) round_trip_px.push_back(cv::norm(from_end[i] - at_start[i]));
+    if (ok[i]) round_trip_px.push_back(cv::norm(returned[i] - at_start[i]));
   ASSERT_GE(round_trip_px.size(), 0.9 * ok.size());
   std::sort(round_trip_px.begin(), round_trip_px.end());
   const double median = round_trip_px[round_trip_px.size() / 2];

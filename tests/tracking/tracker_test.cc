@@ -147,6 +147,114 @@ TEST(FeatureTracker, RedetectionAddsNewIdsAwayFromTrackedFeatures) {
   EXPECT_LE(tracker.num_active(), options.max_features);
 }
 
+// Re-identification scene: a textured background panning 1 px per frame to
+// the left; a flat grey occluder (an instrument) covers a square in frames
+// 1..6. From frame 7 the square shows the background again (`same`) or
+// another texture that moves with the background (a different patch).
+class OccludedPatch {
+ public:
+  static constexpr int kSize = 300, kFrames = 21;
+  const cv::Rect square{90, 90, 120, 120};
+
+  explicit OccludedPatch(bool same)
+      : scene_(Texture(kSize, kSize + kFrames, 21)),
+        other_(Texture(kSize, kSize + kFrames, 22)),
+        same_(same) {}
+
+  cv::Mat Frame(int t) const {
+    cv::Mat image = scene_(cv::Rect(t, 0, kSize, kSize)).clone();
+    if (t >= 1 && t <= 6) {
+      image(square).setTo(110);
+    } else if (t >= 7 && !same_) {
+      other_(cv::Rect(t, 0, kSize, kSize))(square).copyTo(image(square));
+    }
+    return image;
+  }
+  // Frame-0 features whose SURF support lies well inside the square.
+  bool DeepInside(cv::Point2f p) const {
+    const int margin = 25;
+    return p.x > square.x + margin && p.x < square.br().x - margin && p.y > square.y + margin &&
+           p.y < square.br().y - margin;
+  }
+
+ private:
+  cv::Mat scene_, other_;
+  bool same_;
+};
+
+TEST(FeatureTracker, OccludedPatchIsReidentifiedWithItsIdWhenItReappears) {
+  const OccludedPatch video(/*same=*/true);
+  FeatureTracker tracker;  // defaults: re-identification every 5 frames
+  tracker.Initialize(video.Frame(0));
+  std::vector<int> hidden;
+  for (const FeatureState& f : tracker.current())
+    if (video.DeepInside(f.position_px)) hidden.push_back(f.id);
+  ASSERT_GE(hidden.size(), 5u);
+  int reidentified_in_summaries = 0;
+  for (int t = 1; t <= 10; ++t)
+    reidentified_in_summaries += tracker.Track(video.Frame(t)).num_reidentified;
+
+  int found = 0;
+  for (int id : hidden) {
+    const std::vector<TrackObservation>& h = tracker.store().history(id);
+    ASSERT_GE(h.size(), 2u);
+    EXPECT_NE(h[1].status, TrackStatus::kTracked) << "feature " << id << " is hidden in frame 1";
+    if (h.back().status != TrackStatus::kTracked || h.back().frame != 10) continue;
+    ++found;
+    // Found again at the first round after the occluder left (frame 10), where
+    // the pan has carried it: 10 px to the left of its frame-0 position.
+    EXPECT_TRUE(h.back().reidentified);
+    EXPECT_LT(cv::norm(h.back().position_px - (h.front().position_px - cv::Point2f(10, 0))), 1.0)
+        << "feature " << id;
+  }
+  EXPECT_GE(found, 0.8 * hidden.size()) << found << " of " << hidden.size();
+  EXPECT_GE(reidentified_in_summaries, found);
+  // Re-identified features are followed on and keep their ids.
+  for (int t = 11; t <= 13; ++t) tracker.Track(video.Frame(t));
+  int still = 0;
+  for (int id : hidden) still += tracker.store().last_status(id) == TrackStatus::kTracked;
+  EXPECT_GE(still, found - 1);
+}
+
+TEST(FeatureTracker, ADifferentPatchBehindTheOccluderIsNotReidentified) {
+  const OccludedPatch video(/*same=*/false);
+  FeatureTracker tracker;
+  tracker.Initialize(video.Frame(0));
+  std::vector<int> hidden;
+  for (const FeatureState& f : tracker.current())
+    if (video.DeepInside(f.position_px)) hidden.push_back(f.id);
+  ASSERT_GE(hidden.size(), 5u);
+  for (int t = 1; t < OccludedPatch::kFrames; ++t) tracker.Track(video.Frame(t));
+  for (int id : hidden)
+    for (const TrackObservation& o : tracker.store().history(id))
+      EXPECT_FALSE(o.reidentified) << "feature " << id << " matched to another patch in frame "
+                                   << o.frame << " at " << o.position_px;
+  // The background around the square is untouched, so its features go on.
+  EXPECT_GT(tracker.num_active(), 50);
+}
+
+TEST(FeatureTracker, OutliersAreNeverReidentified) {
+  // A feature pushed away by the outlier filter is dropped for good even when
+  // it sits still afterwards.
+  const OccludedPatch video(/*same=*/true);
+  FeatureTrackerOptions options;
+  options.outliers.ratio = 1.0;     // everything moving faster than its neighbours...
+  options.outliers.slack_px = 0.0;  // ... by any amount is an outlier
+  FeatureTracker tracker(options);
+  tracker.Initialize(video.Frame(0));
+  for (int t = 1; t <= 10; ++t) tracker.Track(video.Frame(t));
+  int outliers = 0;
+  for (int id = 0; id < tracker.store().num_features(); ++id) {
+    const std::vector<TrackObservation>& h = tracker.store().history(id);
+    for (size_t k = 0; k < h.size(); ++k)
+      if (h[k].status == TrackStatus::kOutlierSpatioTemporal) {
+        ++outliers;
+        EXPECT_EQ(k + 1, h.size()) << "feature " << id << " came back after being an outlier";
+      }
+  }
+  EXPECT_GT(outliers, 0);
+}
+
 TEST(SpatioTemporalOutliers, FlagsAJumpAmongSlowNeighboursButNotAPan) {
   std::vector<cv::Point2f> positions, displacements;
   for (int y = 0; y < 10; ++y)
