@@ -1,6 +1,7 @@
 #include "mechanics/elastic_energy.h"
 
 #include <Eigen/LU>
+#include <algorithm>
 #include <cmath>
 
 #include "core/error.h"
@@ -30,21 +31,31 @@ void CorotationalElasticity::Update(const MechanicalState& state, const RowMatX3
   const RowMatX4i& tets = state.tetrahedra();
   int inverted = 0;
   long long iterations = 0;
-  for (int t = 0; t < nt; ++t) {
-    const TetRestData& rest = state.rest_data(t);
-    const Eigen::Matrix<double, 4, 3>& g = rest.shape_gradients;
-    // F = sum_a x_a g_a^T.
-    Eigen::Matrix3d F = x.row(tets(t, 0)).transpose() * g.row(0);
-    for (int a = 1; a < 4; ++a) F.noalias() += x.row(tets(t, a)).transpose() * g.row(a);
-    if (F.determinant() <= 0.0) ++inverted;
-    Eigen::Matrix3d& R = rotations_[t];
-    if (polar)
-      iterations += PolarRotation(F, &quaternions_[t], &R, options_.polar_max_iterations,
-                                  options_.polar_tolerance);
-    else
-      iterations += ExtractRotation(F, options_.rotation_method, &R, options_.polar_max_iterations,
-                                    options_.polar_tolerance);
-    rotated_gradients_[t].noalias() = g * R.transpose();
+  // Chunks of elements: deformation gradients first, then the rotations of the
+  // whole chunk (PolarRotations interleaves elements), then rotated gradients.
+  constexpr int kChunk = 64;
+  Eigen::Matrix3d F[kChunk];
+  for (int begin = 0; begin < nt; begin += kChunk) {
+    const int count = std::min(kChunk, nt - begin);
+    for (int k = 0; k < count; ++k) {
+      const int t = begin + k;
+      const Eigen::Matrix<double, 4, 3>& g = state.rest_data(t).shape_gradients;
+      // F = sum_a x_a g_a^T.
+      F[k].noalias() = x.row(tets(t, 0)).transpose() * g.row(0);
+      for (int a = 1; a < 4; ++a) F[k].noalias() += x.row(tets(t, a)).transpose() * g.row(a);
+      if (F[k].determinant() <= 0.0) ++inverted;
+    }
+    if (polar) {
+      iterations += PolarRotations(count, F, &quaternions_[begin], &rotations_[begin],
+                                   options_.polar_max_iterations, options_.polar_tolerance);
+    } else {
+      for (int k = 0; k < count; ++k)
+        iterations += ExtractRotation(F[k], options_.rotation_method, &rotations_[begin + k],
+                                      options_.polar_max_iterations, options_.polar_tolerance);
+    }
+    for (int t = begin; t < begin + count; ++t)
+      rotated_gradients_[t].noalias() =
+          state.rest_data(t).shape_gradients * rotations_[t].transpose();
   }
   num_inverted_ = inverted;
   mean_iterations_ = nt > 0 ? static_cast<double>(iterations) / nt : 0.0;

@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <Eigen/SVD>
+#include <algorithm>
 #include <cmath>
 
 #include "core/error.h"
@@ -87,9 +88,15 @@ void PolarSvd(const Eigen::Matrix3d& F, Eigen::Matrix3d* rotation) {
   *rotation = U * V.transpose();
 }
 
-}  // namespace
+// The iterate of PolarRotation for one element.
+struct PolarIterate {
+  Eigen::Quaterniond q;
+  Eigen::Matrix3d r;
+  int iteration = 0;
+  bool done = false, converged = false;
+};
 
-// Polar rotation by Newton's method on the rotation: with G = R^T F, the
+// One iteration of the polar rotation by Newton's method on the rotation: with G = R^T F, the
 // polar R makes G symmetric; linearising R <- R exp(hat(w)) gives
 // (tr(G) I - sym(G)) w = axial(G - G^T). The rotation is kept as a unit
 // quaternion and updated by the quaternion (1, w/2) normalised - a rotation by
@@ -98,72 +105,106 @@ void PolarSvd(const Eigen::Matrix3d& F, Eigen::Matrix3d* rotation) {
 // warm-started calls. Far from the answer (the matrix is not positive
 // definite) the step falls back to the gradient-like step of Mueller et al.
 // 2016, w = axial(G - G^T) / |tr G|, and steps are capped at 1 rad.
-int PolarRotation(const Eigen::Matrix3d& F, Eigen::Quaterniond* q, Eigen::Matrix3d* R,
-                  int max_iterations, double tolerance) {
-  Eigen::Quaterniond rotation = *q;
-  Eigen::Matrix3d r = rotation.toRotationMatrix();
-  int iteration = 0;
-  bool converged = false;
-  for (; iteration < max_iterations; ++iteration) {
-    const Eigen::Matrix3d G = r.transpose() * F;
-    const double t0 = G(2, 1) - G(1, 2), t1 = G(0, 2) - G(2, 0), t2 = G(1, 0) - G(0, 1);
-    const double tr = G(0, 0) + G(1, 1) + G(2, 2);
-    // M = tr(G) I - sym(G) (symmetric); w = M^-1 t by cofactors.
-    const double m00 = tr - G(0, 0), m11 = tr - G(1, 1), m22 = tr - G(2, 2);
-    const double m01 = -0.5 * (G(0, 1) + G(1, 0)), m02 = -0.5 * (G(0, 2) + G(2, 0)),
-                 m12 = -0.5 * (G(1, 2) + G(2, 1));
-    const double c00 = m11 * m22 - m12 * m12, c01 = m02 * m12 - m01 * m22,
-                 c02 = m01 * m12 - m02 * m11;
-    const double det = m00 * c00 + m01 * c01 + m02 * c02;
-    double w0, w1, w2;
-    const bool newton =
-        tr > 0.0 && det > 1e-6 * tr * tr * tr && m00 > 0.0 && m00 * m11 - m01 * m01 > 0.0;
-    if (newton) {
-      const double c11 = m00 * m22 - m02 * m02, c12 = m01 * m02 - m00 * m12,
-                   c22 = m00 * m11 - m01 * m01;
-      const double inv = 1.0 / det;
-      w0 = inv * (c00 * t0 + c01 * t1 + c02 * t2);
-      w1 = inv * (c01 * t0 + c11 * t1 + c12 * t2);
-      w2 = inv * (c02 * t0 + c12 * t1 + c22 * t2);
-    } else {
-      const double inv = 1.0 / (std::abs(tr) + 1e-12);
-      w0 = inv * t0;
-      w1 = inv * t1;
-      w2 = inv * t2;
-    }
-    double angle2 = w0 * w0 + w1 * w1 + w2 * w2;
-    if (!(angle2 > tolerance * tolerance)) {  // also stops on NaN input
-      converged = angle2 <= tolerance * tolerance;
-      break;
-    }
-    if (angle2 > 1.0) {
-      const double s = 1.0 / std::sqrt(angle2);
-      w0 *= s;
-      w1 *= s;
-      w2 *= s;
-      angle2 = 1.0;
-    }
-    rotation = rotation * Eigen::Quaterniond(1.0, 0.5 * w0, 0.5 * w1, 0.5 * w2);
-    rotation.normalize();
-    r = rotation.toRotationMatrix();
-    // Quadratic convergence: the error left after a step of angle |w| is
-    // ~C |w|^2 with C ~ 1 for elements that are not nearly flat; stop without
-    // a confirming iteration once that is 100x below the tolerance.
-    if (newton && angle2 <= 1e-2 * tolerance) {
-      ++iteration;
-      converged = true;
-      break;
-    }
+inline void PolarStep(const Eigen::Matrix3d& F, double tolerance, PolarIterate* s) {
+  const Eigen::Matrix3d G = s->r.transpose() * F;
+  const double t0 = G(2, 1) - G(1, 2), t1 = G(0, 2) - G(2, 0), t2 = G(1, 0) - G(0, 1);
+  const double tr = G(0, 0) + G(1, 1) + G(2, 2);
+  // M = tr(G) I - sym(G) (symmetric); w = M^-1 t by cofactors.
+  const double m00 = tr - G(0, 0), m11 = tr - G(1, 1), m22 = tr - G(2, 2);
+  const double m01 = -0.5 * (G(0, 1) + G(1, 0)), m02 = -0.5 * (G(0, 2) + G(2, 0)),
+               m12 = -0.5 * (G(1, 2) + G(2, 1));
+  const double c00 = m11 * m22 - m12 * m12, c01 = m02 * m12 - m01 * m22,
+               c02 = m01 * m12 - m02 * m11;
+  const double det = m00 * c00 + m01 * c01 + m02 * c02;
+  double w0, w1, w2;
+  const bool newton =
+      tr > 0.0 && det > 1e-6 * tr * tr * tr && m00 > 0.0 && m00 * m11 - m01 * m01 > 0.0;
+  if (newton) {
+    const double c11 = m00 * m22 - m02 * m02, c12 = m01 * m02 - m00 * m12,
+                 c22 = m00 * m11 - m01 * m01;
+    const double inv = 1.0 / det;
+    w0 = inv * (c00 * t0 + c01 * t1 + c02 * t2);
+    w1 = inv * (c01 * t0 + c11 * t1 + c12 * t2);
+    w2 = inv * (c02 * t0 + c12 * t1 + c22 * t2);
+  } else {
+    const double inv = 1.0 / (std::abs(tr) + 1e-12);
+    w0 = inv * t0;
+    w1 = inv * t1;
+    w2 = inv * t2;
   }
-  if (!converged || !r.allFinite()) {
+  double angle2 = w0 * w0 + w1 * w1 + w2 * w2;
+  if (!(angle2 > tolerance * tolerance)) {  // also stops on NaN input
+    s->converged = angle2 <= tolerance * tolerance;
+    s->done = true;
+    return;
+  }
+  if (angle2 > 1.0) {
+    const double scale = 1.0 / std::sqrt(angle2);
+    w0 *= scale;
+    w1 *= scale;
+    w2 *= scale;
+    angle2 = 1.0;
+  }
+  s->q = s->q * Eigen::Quaterniond(1.0, 0.5 * w0, 0.5 * w1, 0.5 * w2);
+  s->q.coeffs() *= 1.0 / s->q.norm();
+  s->r = s->q.toRotationMatrix();
+  ++s->iteration;
+  // Quadratic convergence: the error left after a step of angle |w| is
+  // ~C |w|^2 with C ~ 1 for elements that are not nearly flat; stop without
+  // a confirming iteration once that is 100x below the tolerance.
+  if (newton && angle2 <= 1e-2 * tolerance) s->done = s->converged = true;
+}
+
+inline void PolarFinish(const Eigen::Matrix3d& F, PolarIterate* s) {
+  if (!s->converged || !s->r.allFinite()) {
     // Not converged (a start far from the answer, or a near-singular F): the
     // SVD answer is exact.
-    PolarSvd(F, &r);
-    rotation = Eigen::Quaterniond(r);
+    PolarSvd(F, &s->r);
+    s->q = Eigen::Quaterniond(s->r);
   }
-  *q = rotation;
-  *R = r;
-  return iteration;
+}
+
+}  // namespace
+
+int PolarRotation(const Eigen::Matrix3d& F, Eigen::Quaterniond* q, Eigen::Matrix3d* R,
+                  int max_iterations, double tolerance) {
+  PolarIterate s{*q, q->toRotationMatrix()};
+  while (!s.done && s.iteration < max_iterations) PolarStep(F, tolerance, &s);
+  PolarFinish(F, &s);
+  *q = s.q;
+  *R = s.r;
+  return s.iteration;
+}
+
+int PolarRotations(int count, const Eigen::Matrix3d* F, Eigen::Quaterniond* q, Eigen::Matrix3d* R,
+                   int max_iterations, double tolerance) {
+  // Four elements in lockstep: each iteration is a long chain of dependent
+  // operations, and interleaving independent chains keeps the CPU busy.
+  constexpr int kLanes = 4;
+  int iterations = 0;
+  for (int base = 0; base < count; base += kLanes) {
+    const int lanes = std::min(kLanes, count - base);
+    PolarIterate s[kLanes];
+    for (int k = 0; k < lanes; ++k) {
+      s[k].q = q[base + k];
+      s[k].r = s[k].q.toRotationMatrix();
+    }
+    for (bool busy = true; busy;) {
+      busy = false;
+      for (int k = 0; k < lanes; ++k)
+        if (!s[k].done && s[k].iteration < max_iterations) {
+          PolarStep(F[base + k], tolerance, &s[k]);
+          busy = true;
+        }
+    }
+    for (int k = 0; k < lanes; ++k) {
+      PolarFinish(F[base + k], &s[k]);
+      q[base + k] = s[k].q;
+      R[base + k] = s[k].r;
+      iterations += s[k].iteration;
+    }
+  }
+  return iterations;
 }
 
 namespace {

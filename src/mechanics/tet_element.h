@@ -76,6 +76,11 @@ int ExtractRotation(const Eigen::Matrix3d& F, RotationMethod method, Eigen::Matr
 // does not converge within max_iterations. Returns the updates made.
 int PolarRotation(const Eigen::Matrix3d& F, Eigen::Quaterniond* rotation, Eigen::Matrix3d* R,
                   int max_iterations = 20, double tolerance = 1e-12);
+// PolarRotation of `count` elements (arrays of count), the same results; the
+// elements are iterated four at a time in lockstep, which overlaps their
+// dependency chains. Returns the updates made in total.
+int PolarRotations(int count, const Eigen::Matrix3d* F, Eigen::Quaterniond* rotations,
+                   Eigen::Matrix3d* R, int max_iterations = 20, double tolerance = 1e-12);
 
 // Corotational energy with the rotation R held fixed:
 //   E_e(x) = V (mu eps:eps + lambda/2 tr(eps)^2),  eps = sym(R^T F(x) - I)
