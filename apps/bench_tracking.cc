@@ -71,7 +71,8 @@ int RunBenchTracking(int argc, char** argv) {
   parser.SetEpilog(
       "Figures: decode_ms_per_frame (ReadGray), detect_ms (Fast-Hessian + orientation on\n"
       "frame 0), describe_ms (64-D descriptors of those points), track_ms_per_frame\n"
-      "(FeatureTracker::Track incl. pyramid, forward-backward check and filters),\n"
+      "(FeatureTracker::Track incl. pyramid, forward-backward check, filters and\n"
+      "re-identification; track_no_reid_ms_per_frame without the latter),\n"
       "lk_500_ms (Track() of 500 features detected in frame f-1 into frame f, f = 1..10),\n"
       "features_initial,\n"
       "features_final (still tracked at the last frame).");
@@ -122,24 +123,38 @@ int RunBenchTracking(int argc, char** argv) {
     detected = keypoints.size();
   }
 
-  // Tracking through the clip.
-  std::vector<double> track_runs;
-  int features_initial = 0, features_final = 0;
-  double mean_active = 0;
-  for (int run = 0; run < repeats; ++run) {
-    FeatureTracker tracker(options);
-    features_initial = tracker.Initialize(frames[0]).num_active;
-    double total_ms = 0, active_sum = 0;
-    for (size_t f = 1; f < frames.size(); ++f) {
-      active_sum += tracker.num_active();
-      const auto start = Clock::now();
-      tracker.Track(frames[f]);
-      total_ms += MillisecondsSince(start);
+  // Tracking through the clip, with the default re-identification (SURF every
+  // few frames) and without it, to show what it costs.
+  struct ClipRun {
+    double ms_per_frame = 0, mean_active = 0;
+    int initial = 0, final = 0, reidentified = 0;
+  };
+  auto track_clip = [&](const FeatureTrackerOptions& clip_options) {
+    std::vector<double> runs;
+    ClipRun result;
+    for (int run = 0; run < repeats; ++run) {
+      FeatureTracker tracker(clip_options);
+      result.initial = tracker.Initialize(frames[0]).num_active;
+      double total_ms = 0, active_sum = 0;
+      result.reidentified = 0;
+      for (size_t f = 1; f < frames.size(); ++f) {
+        active_sum += tracker.num_active();
+        const auto start = Clock::now();
+        result.reidentified += tracker.Track(frames[f]).num_reidentified;
+        total_ms += MillisecondsSince(start);
+      }
+      result.final = tracker.num_active();
+      result.mean_active = active_sum / (frames.size() - 1);
+      runs.push_back(total_ms / (frames.size() - 1));
     }
-    features_final = tracker.num_active();
-    mean_active = active_sum / (frames.size() - 1);
-    track_runs.push_back(total_ms / (frames.size() - 1));
-  }
+    result.ms_per_frame = Median(runs);
+    return result;
+  };
+  const ClipRun clip = track_clip(options);
+  FeatureTrackerOptions no_reid_options = options;
+  no_reid_options.reidentify.enabled = false;
+  const ClipRun clip_no_reid = track_clip(no_reid_options);
+  const int features_initial = clip.initial, features_final = clip.final;
 
   // One tracking step with exactly 500 features: for each frame pair (f-1, f),
   // f = 1..10, 500 points are detected in frame f-1 (not timed) and Track()
@@ -181,8 +196,11 @@ int RunBenchTracking(int argc, char** argv) {
   out["detect_ms"] = Median(detect_runs);
   out["describe_ms"] = Median(describe_runs);
   out["surf_points_frame0"] = detected;
-  out["track_ms_per_frame"] = Median(track_runs);
-  out["mean_active_features"] = mean_active;
+  out["track_ms_per_frame"] = clip.ms_per_frame;
+  out["mean_active_features"] = clip.mean_active;
+  out["reidentified"] = clip.reidentified;
+  out["track_no_reid_ms_per_frame"] = clip_no_reid.ms_per_frame;
+  out["features_final_no_reid"] = clip_no_reid.final;
   out["lk_500_ms"] = Median(lk_500_runs);
   out["lk_500_features"] = lk_500_features;
   out["features_initial"] = features_initial;
@@ -194,8 +212,12 @@ int RunBenchTracking(int argc, char** argv) {
   std::printf("  detect_ms            %8.3f  (%zu SURF points, threshold %g)\n",
               Median(detect_runs), detected, hessian_threshold);
   std::printf("  describe_ms          %8.3f\n", Median(describe_runs));
-  std::printf("  track_ms_per_frame   %8.3f  (%.0f active features on average)\n",
-              Median(track_runs), mean_active);
+  std::printf(
+      "  track_ms_per_frame   %8.3f  (%.0f active features on average, %d re-identifications)\n",
+      clip.ms_per_frame, clip.mean_active, clip.reidentified);
+  std::printf(
+      "  track_no_reid_ms_per_frame %8.3f  (re-identification off: %d features at the end)\n",
+      clip_no_reid.ms_per_frame, clip_no_reid.final);
   std::printf(
       "  lk_500_ms            %8.3f  (Track() of %d features, frame pairs 0-1 .. %zu-%zu)\n",
       Median(lk_500_runs), lk_500_features, lk_500_frames - 1, lk_500_frames);

@@ -261,6 +261,30 @@ LucasKanadeSummary TrackLucasKanade(const LucasKanadePyramid& from, const LucasK
   const float coarse_eps2 = std::max(eps2, kCoarseEpsilonPx * kCoarseEpsilonPx);
   const float min_eigen = static_cast<float>(options.min_eigen_threshold);
 
+  // Per level: the planes, how far they may be read outside (the least margin
+  // of image and gradient) and their common row step.
+  struct LevelView {
+    const cv::Mat *value, *gx, *gy, *target;
+    Margins value_margins, target_margins;
+    ptrdiff_t step;
+  };
+  std::array<LevelView, 9> views;
+  for (int level = 0; level <= top_level; ++level) {
+    LevelView& lv = views[level];
+    lv.value = &from.float_image(level);
+    lv.gx = &from.gradient_x(level);
+    lv.gy = &from.gradient_y(level);
+    lv.target = &to.float_image(level);
+    const Margins mv = MarginsOf(*lv.value), mg = MarginsOf(*lv.gx);
+    lv.value_margins = {std::min(mv.left, mg.left), std::min(mv.top, mg.top),
+                        std::min(mv.right, mg.right), std::min(mv.bottom, mg.bottom)};
+    lv.target_margins = MarginsOf(*lv.target);
+    lv.step = static_cast<ptrdiff_t>(lv.value->step[0] / sizeof(float));
+    ARREG_ASSERT(lv.gx->step[0] == lv.value->step[0] && lv.gy->step[0] == lv.value->step[0] &&
+                     lv.target->step[0] == lv.value->step[0],
+                 "");
+  }
+
   // Points in bands of 32 rows, left to right within a band: neighbouring
   // windows then share cache lines and a band of every plane stays in the L2
   // cache, where the features' own order (by strength) jumps across the image.
@@ -277,30 +301,26 @@ LucasKanadeSummary TrackLucasKanade(const LucasKanadePyramid& from, const LucasK
     bool ok = true;
     for (int level = top_level; level >= 0; --level) {
       if (level != top_level) d *= 2.f;
-      const cv::Mat& value = from.float_image(level);
-      const cv::Mat& gx = from.gradient_x(level);
-      const cv::Mat& gy = from.gradient_y(level);
-      const cv::Mat& target = to.float_image(level);
-      const Margins mv = MarginsOf(value), mg = MarginsOf(gx), mt = MarginsOf(target);
-      const ptrdiff_t step = static_cast<ptrdiff_t>(value.step[0] / sizeof(float));
-      ARREG_ASSERT(gx.step[0] == value.step[0] && gy.step[0] == value.step[0] &&
-                       target.step[0] == value.step[0],
-                   "");
+      const LevelView& lv = views[level];
+      const cv::Mat& value = *lv.value;
+      const cv::Mat& target = *lv.target;
+      const Margins& mv = lv.value_margins;
+      const Margins& mt = lv.target_margins;
+      const ptrdiff_t step = lv.step;
       const float scale = 1.f / (1 << level);
       const cv::Point2f p = start_px[i] * scale;
       // Window on the integer grid around the point: the translation estimated
       // is the same, and the template needs no interpolation.
       const int x0 = static_cast<int>(std::floor(p.x + 0.5f)) - half;
       const int y0 = static_cast<int>(std::floor(p.y + 0.5f)) - half;
-      if (x0 < -std::min(mv.left, mg.left) || y0 < -std::min(mv.top, mg.top) ||
-          x0 + cols > value.cols + std::min(mv.right, mg.right) ||
-          y0 + win > value.rows + std::min(mv.bottom, mg.bottom)) {
+      if (x0 < -mv.left || y0 < -mv.top || x0 + cols > value.cols + mv.right ||
+          y0 + win > value.rows + mv.bottom) {
         if (level == 0) ok = false;
         continue;
       }
       const WindowArgs window{value.ptr<float>() + y0 * step + x0,
-                              gx.ptr<float>() + y0 * step + x0,
-                              gy.ptr<float>() + y0 * step + x0,
+                              lv.gx->ptr<float>() + y0 * step + x0,
+                              lv.gy->ptr<float>() + y0 * step + x0,
                               step,
                               win,
                               cols,
