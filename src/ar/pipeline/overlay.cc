@@ -101,34 +101,46 @@ void OverlayRenderer::RenderCoverage(const render::PixelRect& box,
   }
   // Composite: the internal layer over the frame, the organ over both, unless a structure
   // lies in front of the organ's surface (it pokes out), which then goes on top.
+  // In 8-bit units, so that the frame's pixels need no scaling.
   using Pixel = render::CoverageLayer::Pixel;
+  const auto over = [](const Pixel& p, float* rgb) {
+    rgb[0] += p.alpha * (255.0f * p.r - rgb[0]);
+    rgb[1] += p.alpha * (255.0f * p.g - rgb[1]);
+    rgb[2] += p.alpha * (255.0f * p.b - rgb[2]);
+  };
+  const auto store = [](const float* rgb, cv::Vec3b* px) {
+    for (int c = 0; c < 3; ++c)
+      (*px)[2 - c] = static_cast<uchar>(std::clamp(rgb[c], 0.0f, 255.0f) + 0.5f);
+  };
   for (int y = box.y0; y < box.y1; ++y) {
-    const int x0 = std::min(internal_layer_.row_begin(y), organ_layer_.row_begin(y));
-    const int x1 = std::max(internal_layer_.row_end(y), organ_layer_.row_end(y));
     auto* out = bgr->ptr<cv::Vec3b>(y);
     const Pixel* in_row = internal_layer_.row(y);
     const Pixel* organ_row = organ_layer_.row(y);
-    for (int x = x0; x < x1; ++x) {
+    const int si0 = internal_layer_.row_begin(y), si1 = internal_layer_.row_end(y);
+    const int so0 = organ_layer_.row_begin(y), so1 = organ_layer_.row_end(y);
+    if (si0 >= si1) {  // the organ alone in this row (the common case)
+      for (int x = so0; x < so1; ++x) {
+        const Pixel& o = organ_row[x];
+        if (o.alpha == 0) continue;
+        float rgb[3] = {float(out[x][2]), float(out[x][1]), float(out[x][0])};
+        over(o, rgb);
+        store(rgb, &out[x]);
+      }
+      continue;
+    }
+    for (int x = std::min(si0, so0); x < std::max(si1, so1); ++x) {
       const Pixel& s = in_row[x];
       const Pixel& o = organ_row[x];
       if (s.alpha == 0 && o.alpha == 0) continue;
-      cv::Vec3b& px = out[x];
-      float r = px[2] * (1.0f / 255), g = px[1] * (1.0f / 255), b = px[0] * (1.0f / 255);
-      const auto over = [&](const Pixel& p) {
-        r += p.alpha * (p.r - r);
-        g += p.alpha * (p.g - g);
-        b += p.alpha * (p.b - b);
-      };
+      float rgb[3] = {float(out[x][2]), float(out[x][1]), float(out[x][0])};
       if (s.alpha > 0 && o.alpha > 0 && s.inv_depth > o.inv_depth) {
-        over(o);
-        over(s);
+        over(o, rgb);
+        over(s, rgb);
       } else {
-        over(s);  // alpha 0 leaves the colour as it is
-        over(o);
+        over(s, rgb);  // alpha 0 leaves the colour as it is
+        over(o, rgb);
       }
-      px[0] = static_cast<uchar>(255.0f * std::clamp(b, 0.0f, 1.0f) + 0.5f);
-      px[1] = static_cast<uchar>(255.0f * std::clamp(g, 0.0f, 1.0f) + 0.5f);
-      px[2] = static_cast<uchar>(255.0f * std::clamp(r, 0.0f, 1.0f) + 0.5f);
+      store(rgb, &out[x]);
     }
   }
 }
