@@ -342,6 +342,29 @@ TEST(CoverageLayer, NearerSurfaceWinsInEitherDrawOrder) {
   }
 }
 
+TEST(CoverageLayer, ClearEmptiesWhatWasDrawnAndDrawsClipToTheRect) {
+  const RasterCamera camera = TestCamera();
+  RowMatX3d v;
+  RowMatX3i f;
+  Square(20, 100, 0, &v, &f);  // covers the whole 64 x 48 image but a border
+  const RowMatX3f white = Uniform(4, Eigen::Vector3f(1, 1, 1));
+  CoverageLayer layer(camera);
+  layer.Clear({0, 0, camera.width, camera.height});
+  layer.Draw(v, f, white, CoverageDrawOptions());
+  EXPECT_NEAR(layer.CoveredArea(), 40.0 * 40.0, 1e-3);
+  // The next frame's box is smaller: nothing of the last frame may remain, and nothing is
+  // drawn outside the box.
+  layer.Clear({20, 10, 30, 25});
+  EXPECT_EQ(layer.CoveredArea(), 0.0);
+  EXPECT_EQ(layer.alpha(31, 23), 0.0f);
+  layer.Draw(v, f, white, CoverageDrawOptions());
+  EXPECT_NEAR(layer.CoveredArea(), 10.0 * 15.0, 1e-3);
+  for (int y = 0; y < camera.height; ++y)
+    for (int x = 0; x < camera.width; ++x)
+      ASSERT_EQ(layer.alpha(x, y), x >= 20 && x < 30 && y >= 10 && y < 25 ? 1.0f : 0.0f)
+          << x << "," << y;
+}
+
 TEST(CoverageLayer, CullsBackFacesAndClipsAtTheNearPlane) {
   RasterCamera camera = TestCamera();
   RowMatX3d v;
