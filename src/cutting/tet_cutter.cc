@@ -6,6 +6,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <map>
 #include <numeric>
 #include <unordered_map>
 #include <utility>
@@ -127,15 +128,25 @@ void CuttableMesh::Init(const TetMesh& mesh, const RowMatX3d& current,
       vertex_tets_[v].push_back(t);
     }
     const Tet& q = tets_[t];
-    ARREG_CHECK_INPUT(
-        Orient3d(rest_[q[0]], rest_[q[1]], rest_[q[2]], rest_[q[3]]) > 0 &&
-            Orient3d(current_[q[0]], current_[q[1]], current_[q[2]], current_[q[3]]) > 0,
-        "", "CuttableMesh", "tetrahedron ", t, " has non-positive volume (rest or current)");
+    ARREG_CHECK_INPUT(Orient3d(rest_[q[0]], rest_[q[1]], rest_[q[2]], rest_[q[3]]) > 0, "",
+                      "CuttableMesh", "tetrahedron ", t, " has non-positive rest volume");
     for (const auto& e : kEdgeLocal)
       if (edges.insert(EdgeKey(q[e[0]], q[e[1]])).second)
         edge_sum += (rest_[q[e[0]]] - rest_[q[e[1]]]).norm();
   }
   mean_edge_length_ = edges.empty() ? 0.0 : edge_sum / edges.size();
+}
+
+void CuttableMesh::SetDeformation(const RowMatX3d& current, const RowMatX3d& velocities) {
+  ARREG_CHECK_INPUT(current.rows() == num_vertices() && velocities.rows() == num_vertices(), "",
+                    "CuttableMesh::SetDeformation", "current positions and velocities need ",
+                    num_vertices(), " rows, got ", current.rows(), " and ", velocities.rows());
+  ARREG_CHECK_INPUT(current.allFinite() && velocities.allFinite(), "",
+                    "CuttableMesh::SetDeformation", "non-finite position or velocity");
+  for (int i = 0; i < num_vertices(); ++i) {
+    current_[i] = current.row(i).transpose();
+    velocity_[i] = velocities.row(i).transpose();
+  }
 }
 
 TetMesh CuttableMesh::RestMesh() const {
@@ -177,10 +188,13 @@ class CutEvent {
 
  private:
   // --- geometry helpers ---
-  bool TetValid(const Tet& t) const {
-    return Orient3d(m_.rest_[t[0]], m_.rest_[t[1]], m_.rest_[t[2]], m_.rest_[t[3]]) > 0 &&
-           Orient3d(m_.current_[t[0]], m_.current_[t[1]], m_.current_[t[2]], m_.current_[t[3]]) > 0;
+  bool RestPositive(const Tet& t) const {
+    return Orient3d(m_.rest_[t[0]], m_.rest_[t[1]], m_.rest_[t[2]], m_.rest_[t[3]]) > 0;
   }
+  bool CurrentPositive(const Tet& t) const {
+    return Orient3d(m_.current_[t[0]], m_.current_[t[1]], m_.current_[t[2]], m_.current_[t[3]]) > 0;
+  }
+  bool TetValid(const Tet& t) const { return RestPositive(t) && CurrentPositive(t); }
   double Quality(const Tet& t) const {
     return std::min(
         TetQuality(m_.rest_[t[0]], m_.rest_[t[1]], m_.rest_[t[2]], m_.rest_[t[3]]),
@@ -208,6 +222,7 @@ class CutEvent {
   // --- steps ---
   void ComputeCrossings(const std::vector<int>& candidate_tets);
   void Snap();
+  void MoveFrontVertices();
   void Remesh();
   bool Verify(std::string* why) const;
   void Commit(CutChange* change);
@@ -229,6 +244,12 @@ class CutEvent {
   std::vector<int> crossed_tets_;
   std::vector<Tet> region_;  // new elements replacing crossed_tets_
   std::vector<char> region_alive_;
+  // Per region element: the crossed element (index into crossed_tets_) it lies in, or -1
+  // when it spans several (flips, edge removal; only over elements positive in both
+  // configurations).
+  std::vector<int> region_parent_;
+  std::vector<char> crossed_inverted_;  // per crossed element: non-positive in current
+  std::vector<std::pair<int, bool>> split_vertices_;  // 1-4 vertices, on S
   std::vector<std::pair<int, std::vector<int>>>
       unsewn_splits_;  // y vertex, boundary points of the face
   std::vector<int> changed_slots_;
@@ -424,9 +445,32 @@ void CutEvent::ComputeCrossings(const std::vector<int>& candidate_tets) {
   }
 }
 
+void CutEvent::MoveFrontVertices() {
+  if (!opt_.move_front_vertices || m_.front_vertices_.empty()) return;
+  // Per front vertex, its crossed edges by the distance it would move (shortest first).
+  std::map<int, std::vector<std::pair<double, std::uint64_t>>> moves;
+  for (const auto& [key, c] : crossings_) {
+    const int a = static_cast<int>(key >> 32), b = static_cast<int>(key & 0xffffffffu);
+    for (int v : {a, b})
+      if (m_.front_vertices_.count(v))
+        moves[v].emplace_back((m_.current_[v] - c.point).norm(), key);
+  }
+  for (auto& [v, list] : moves) {
+    std::sort(list.begin(), list.end());
+    for (const auto& [distance, key] : list) {
+      const int a = static_cast<int>(key >> 32), b = static_cast<int>(key & 0xffffffffu);
+      if (Marked(a) || Marked(b)) continue;
+      if (TrySnap(v, a, b, crossings_.at(key))) {
+        ++summary_.num_moved_front_vertices;
+        break;
+      }
+    }
+  }
+}
+
 void CutEvent::Snap() {
+  MoveFrontVertices();
   const double threshold = opt_.snap_epsilon * scale_;
-  if (!(threshold > 0)) return;
   std::vector<std::uint64_t> keys;
   for (const auto& kv : crossings_) keys.push_back(kv.first);
   std::sort(keys.begin(), keys.end());
@@ -437,7 +481,7 @@ void CutEvent::Snap() {
     const double da = std::abs(c.normal.dot(m_.current_[a] - c.point));
     const double db = std::abs(c.normal.dot(m_.current_[b] - c.point));
     const int v = da <= db ? a : b;
-    if (std::min(da, db) >= threshold) continue;
+    if (!(threshold > 0) || std::min(da, db) >= threshold) continue;
     TrySnap(v, a, b, c);
   }
   for (auto it = crossings_.begin(); it != crossings_.end();) {
@@ -468,6 +512,11 @@ void CutEvent::Remesh() {
   const int nct = static_cast<int>(crossed_tets_.size());
   std::unordered_map<int, int> local_of;
   for (int i = 0; i < nct; ++i) local_of[crossed_tets_[i]] = i;
+  // Elements inverted (or flat) in the current configuration are subdivided in place only
+  // (no flip or edge removal spans them): their pieces are checked in the rest
+  // configuration, where they are positive, and keep the parent's current orientation.
+  crossed_inverted_.assign(nct, 0);
+  for (int i = 0; i < nct; ++i) crossed_inverted_[i] = !CurrentPositive(m_.tets_[crossed_tets_[i]]);
 
   // 1-4 split: one vertex per crossed tetrahedron, at the barycentre of the points
   // where S (or, for a partial cut, its tangent plane) meets the edges.
@@ -506,6 +555,7 @@ void CutEvent::Remesh() {
     target /= static_cast<double>(points.size());
     const std::vector<int> parents(q.begin(), q.end());
     p_of[i] = AddVertex(parents, InteriorWeights(parents, target), on_surface);
+    split_vertices_.emplace_back(p_of[i], on_surface);
   }
 
   // Faces of the crossed tetrahedra.
@@ -540,7 +590,8 @@ void CutEvent::Remesh() {
   // Crossed faces: 2-3 flip when valid, otherwise (and on the boundary) a vertex on the face.
   for (FaceInfo& f : faces) {
     if (f.num_crossed == 0) continue;
-    if (!bielser && f.tet1 >= 0 && !f.unsewn) {
+    if (!bielser && f.tet1 >= 0 && !f.unsewn && !crossed_inverted_[f.tet0] &&
+        !crossed_inverted_[f.tet1]) {
       const int p = p_of[f.tet0], q = p_of[f.tet1];
       bool ok = true;
       for (int k = 0; k < 3 && ok; ++k) {
@@ -596,11 +647,18 @@ void CutEvent::Remesh() {
       const int cyc[3] = {u, v, w};
       if (f.num_crossed == 0) {
         region_.push_back({u, v, w, p});
+        region_parent_.push_back(i);
       } else if (f.y >= 0) {
-        for (int k = 0; k < 3; ++k) region_.push_back({cyc[k], cyc[(k + 1) % 3], f.y, p});
+        for (int k = 0; k < 3; ++k) {
+          region_.push_back({cyc[k], cyc[(k + 1) % 3], f.y, p});
+          region_parent_.push_back(i);
+        }
       } else if (f.flip && f.tet0 == i) {
         const int other = p_of[f.tet1];
-        for (int k = 0; k < 3; ++k) region_.push_back({cyc[k], cyc[(k + 1) % 3], other, p});
+        for (int k = 0; k < 3; ++k) {
+          region_.push_back({cyc[k], cyc[(k + 1) % 3], other, p});
+          region_parent_.push_back(-1);
+        }
       }
     }
   }
@@ -643,6 +701,11 @@ void CutEvent::Remesh() {
     ARREG_ASSERT(static_cast<int>(poly.size()) == static_cast<int>(ring.size()) + (open ? 1 : 0),
                  "edge link is not a simple chain");
     bool try_removal = !bielser;
+    for (int t : m_.vertex_tets_[a])
+      if (try_removal && Contains(m_.tets_[t], b)) {
+        const auto it = local_of.find(t);
+        if (it == local_of.end() || crossed_inverted_[it->second]) try_removal = false;
+      }
     // Edges on unsewn faces keep them: no removal.
     for (int t : m_.vertex_tets_[a])
       if (try_removal && Contains(m_.tets_[t], b))
@@ -716,6 +779,8 @@ void CutEvent::Remesh() {
           region_.push_back({b, poly[i], poly[j], poly[k]});
           region_alive_.push_back(1);
           region_alive_.push_back(1);
+          region_parent_.push_back(-1);
+          region_parent_.push_back(-1);
           stack.emplace_back(i, k);
           stack.emplace_back(k, j);
         }
@@ -737,6 +802,9 @@ void CutEvent::Remesh() {
         region_.push_back({c.x_vertex, b, cd[0], cd[1]});
         region_alive_.push_back(1);
         region_alive_.push_back(1);
+        const int parent = region_parent_[r];
+        region_parent_.push_back(parent);
+        region_parent_.push_back(parent);
       }
       ++summary_.num_bisected_edges;
     }
@@ -762,7 +830,9 @@ bool CutEvent::Verify(std::string* why) const {
   for (size_t r = 0; r < region_.size(); ++r) {
     if (!region_alive_[r]) continue;
     const Tet& q = region_[r];
-    if (!TetValid(q)) {
+    const int parent = region_parent_[r];
+    const bool in_inverted = parent >= 0 && crossed_inverted_[parent];
+    if (!(in_inverted ? RestPositive(q) : TetValid(q))) {
       *why = "an inserted element would be inverted or flat";
       return false;
     }
@@ -1000,6 +1070,10 @@ CutSummary CutEvent::Run(CutChange* change) {
   }
   Commit(change);
   if (opt_.separate) Separate();
+  for (int v = 0; v < nv0_; ++v)
+    if (marked_[v]) m_.front_vertices_.erase(v);  // on S now (snapped, moved or met by S)
+  for (const auto& [v, on_surface] : split_vertices_)
+    if (!on_surface) m_.front_vertices_.insert(v);
   summary_.status = CutStatus::kCut;
   summary_.num_new_vertices = static_cast<int>(new_vertices_.size());
   summary_.num_tetrahedra_added = m_.num_tetrahedra() - nt0_;
@@ -1091,8 +1165,9 @@ CutSummary CuttableMesh::Cut(const CutSurface& surface, const CutOptions& option
       return summary;
     }
     *this = before;
-    if (opt.snap_epsilon == 0) break;
+    if (opt.snap_epsilon == 0 && !opt.move_front_vertices) break;
     opt.snap_epsilon = 0;
+    opt.move_front_vertices = false;
   }
   CutSummary rejected;
   rejected.status = CutStatus::kRejected;

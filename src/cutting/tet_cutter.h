@@ -49,6 +49,11 @@ struct CutOptions {
   double feature_angle_deg = 0.0;
   // Separate the mesh along S (unsew faces, duplicate vertices); default true.
   bool separate = true;
+  // Free 1-4 vertices left inside the front of an earlier partial cut (not on S) are moved
+  // onto S along a crossed edge, whatever their distance (thesis 5.1.4: the existing vertex
+  // moves instead of the front being remeshed again); default true. Refused like a snap
+  // when an incident element would become inverted or worse than min_flip_quality.
+  bool move_front_vertices = true;
 
   void Check() const;
 };
@@ -106,7 +111,8 @@ struct CutSummary {
   std::string message;
   int num_crossed_edges = 0;
   int num_crossed_tetrahedra = 0;  // n(v)
-  int num_snapped_vertices = 0;
+  int num_snapped_vertices = 0;    // snapped vertices and moved front vertices
+  int num_moved_front_vertices = 0;
   int num_flipped_faces = 0;  // 2-3 flips
   int num_split_faces = 0;    // faces that got a vertex (boundary 1-3 splits included)
   int num_removed_edges = 0;  // general flips
@@ -119,14 +125,22 @@ struct CutSummary {
 // A tetrahedral mesh that can be cut repeatedly. Keeps vertex -> element
 // incidence and the set of unsewn faces (faces on S whose vertices are not yet
 // all duplicated, e.g. at the front of a partial cut) so successive cuts continue
-// earlier ones. Geometry decisions use the current positions; validity is checked
-// in both the rest and the current configuration.
+// earlier ones. Geometry decisions use the current positions; every new element is
+// positive in the rest configuration and, unless it subdivides an element that is already
+// inverted (or flat) in the current configuration, in the current one too: an inverted
+// element does not stop a cut (see docs/cutting.md).
 class CuttableMesh {
  public:
-  // Throws arreg::Error for bad indices or an element of non-positive volume.
+  // Throws arreg::Error for bad indices or an element of non-positive rest volume (the
+  // current configuration may have inverted elements).
   explicit CuttableMesh(const TetMesh& rest_mesh);
   CuttableMesh(const TetMesh& rest_mesh, const RowMatX3d& current_positions,
                const RowMatX3d& velocities);
+
+  // Replaces the current positions and velocities (#V x 3 each, same numbering), e.g. from
+  // the mechanical state before the next event; the topology, unsewn faces and front
+  // vertices are kept. Throws arreg::Error on a row count mismatch or non-finite values.
+  void SetDeformation(const RowMatX3d& current_positions, const RowMatX3d& velocities);
 
   // One cutting event along S (in the frame of the current positions).
   CutSummary Cut(const CutSurface& surface, const CutOptions& options, CutChange* change = nullptr);
@@ -140,6 +154,8 @@ class CuttableMesh {
   // Mean rest edge length of the mesh given to the constructor (the snapping scale).
   double mean_rest_edge_length() const { return mean_edge_length_; }
   int num_unsewn_faces() const { return static_cast<int>(unsewn_.size()); }
+  // Free 1-4 vertices at the front of partial cuts (see CutOptions::move_front_vertices).
+  int num_front_vertices() const { return static_cast<int>(front_vertices_.size()); }
 
   TetMesh RestMesh() const;
   TetMesh CurrentMesh() const;
@@ -153,6 +169,7 @@ class CuttableMesh {
   std::vector<std::array<int, 4>> tets_;
   std::vector<std::vector<int>> vertex_tets_;
   std::unordered_set<std::uint64_t> unsewn_;  // face keys (see FaceKey in the .cc)
+  std::unordered_set<int> front_vertices_;    // 1-4 vertices of partial cuts, not on S
   double mean_edge_length_ = 0;
 };
 

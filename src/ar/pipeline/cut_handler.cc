@@ -11,10 +11,50 @@ namespace arreg::pipeline {
 CutHandler::CutHandler(const CuttingStageOptions& options, const mechanics::MechanicalState& state)
     : options_(options) {
   options_.Check();
-  (void)state;
+  mesh_ = std::make_unique<cutting::CuttableMesh>(state.RestMesh(), state.positions(),
+                                                  state.velocities());
 }
 
 CutHandler::~CutHandler() = default;
+
+bool CutHandler::Applied(const Eigen::Vector3d& p) const {
+  for (const Eigen::Vector3d& q : applied_points_)
+    if ((p - q).squaredNorm() <= 1e-18) return true;
+  return false;
+}
+
+SurfaceMesh CutHandler::NewPart(const std::vector<Eigen::Vector3d>& polyline_mm,
+                                const Eigen::Vector3d& eye_mm,
+                                const cutting::CutExtrusionOptions& ext) const {
+  SurfaceMesh out;
+  out.vertices.resize(0, 3);
+  out.faces.resize(0, 3);
+  const int n = static_cast<int>(polyline_mm.size());
+  std::vector<char> old(n);
+  for (int i = 0; i < n; ++i) old[i] = Applied(polyline_mm[i]);
+  for (int i = 0; i + 1 < n;) {
+    if (old[i] && old[i + 1]) {
+      ++i;
+      continue;
+    }
+    // A run of consecutive segments with a new point: extrude it as one strip.
+    int j = i + 1;
+    while (j + 1 < n && !(old[j] && old[j + 1])) ++j;
+    const std::vector<Eigen::Vector3d> run(polyline_mm.begin() + i, polyline_mm.begin() + j + 1);
+    bool distinct = false;
+    for (const Eigen::Vector3d& p : run) distinct = distinct || (p - run.front()).norm() > 0;
+    if (distinct) {
+      const SurfaceMesh strip = cutting::ExtrudeCutPolyline(run, eye_mm, ext);
+      const int nv = static_cast<int>(out.vertices.rows()), nf = static_cast<int>(out.faces.rows());
+      out.vertices.conservativeResize(nv + strip.vertices.rows(), 3);
+      out.vertices.bottomRows(strip.vertices.rows()) = strip.vertices;
+      out.faces.conservativeResize(nf + strip.faces.rows(), 3);
+      out.faces.bottomRows(strip.faces.rows()) = strip.faces.array() + nv;
+    }
+    i = j;
+  }
+  return out;
+}
 
 CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyline_mm,
                            const Eigen::Vector3d& eye_mm, const CutTargets& t,
@@ -32,20 +72,44 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
   try {
     const cutting::CutExtrusionOptions ext = cutting::CutExtrusionCovering(
         polyline_mm, eye_mm, state.positions(), options_.extrusion_margin_mm);
-    SurfaceMesh s = cutting::ExtrudeCutPolyline(polyline_mm, eye_mm, ext);
+    SurfaceMesh full = cutting::ExtrudeCutPolyline(polyline_mm, eye_mm, ext);
+    // Only the segments with a point not applied before are cut: the detector keeps its
+    // cut points (p^t at insertion), so a segment between two applied points lies on the
+    // crack already, and cutting it again with this frame's S (the model has moved since)
+    // would cross the elements along the crack a second time.
+    const SurfaceMesh s = NewPart(polyline_mm, eye_mm, ext);
+    ARREG_CHECK_INPUT(s.faces.rows() > 0, "", "CutHandler::Apply",
+                      "every segment of the polyline was applied before");
     const cutting::CutSurface cs{s.vertices, s.faces};
-    cutting::CuttableMesh cuttable(state.RestMesh(), state.positions(), state.velocities());
+    // The persistent topology is numbered like the state (events are its only changes);
+    // it takes this frame's deformation, which may have inverted elements (see
+    // CuttableMesh: those are subdivided in the rest configuration).
+    ARREG_CHECK_INPUT(mesh_->num_vertices() == state.num_vertices() &&
+                          mesh_->num_tetrahedra() == state.num_tetrahedra(),
+                      "", "CutHandler::Apply", "the state has ", state.num_vertices(),
+                      " vertices and ", state.num_tetrahedra(), " elements, the cut topology ",
+                      mesh_->num_vertices(), " and ", mesh_->num_tetrahedra());
+    mesh_->SetDeformation(state.positions(), state.velocities());
     cutting::CutOptions co;
     co.method = options_.method == "bielser" ? cutting::RemeshMethod::kBielser
                                              : cutting::RemeshMethod::kFlips;
-    co.snap_epsilon = 0.0;  // MechanicalState keeps rest positions: no snapping
+    co.snap_epsilon = options_.snap_epsilon;
+    co.on_surface_tolerance = options_.on_surface_tolerance;
     cutting::CutChange change;
-    const cutting::CutSummary cut = cuttable.Cut(cs, co, &change);
+    const cutting::CuttableMesh before = *mesh_;
+    const cutting::CutSummary cut = mesh_->Cut(cs, co, &change);
     ev.message = cut.message;
     if (cut.status == cutting::CutStatus::kCut) {
       ev.status = "cut";
       const int v_before = state.num_vertices(), t_before = state.num_tetrahedra();
-      const std::vector<int> new_elements = cutting::ApplyCutChange(change, &state);
+      std::vector<int> new_elements;
+      try {
+        // Throws only for elements of non-positive rest volume, which the cutter never makes.
+        new_elements = cutting::ApplyCutChange(change, &state);
+      } catch (const Error&) {
+        *mesh_ = before;
+        throw;
+      }
       cutting::ReembedAfterCut(change, new_elements, state, *t.features_rest_mm,
                                t.feature_embedding);
       for (int r = 0; r < nf; ++r)
@@ -70,12 +134,13 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
         v.spring_active = false;
         ++ev.springs_removed;
       }
+      applied_points_.insert(applied_points_.end(), polyline_mm.begin(), polyline_mm.end());
       ev.new_vertices = state.num_vertices() - v_before;
       ev.new_tetrahedra = state.num_tetrahedra() - t_before;
     } else {
       ev.status = cut.status == cutting::CutStatus::kNoCrossing ? "no-crossing" : "rejected";
     }
-    if (cut_surface) *cut_surface = std::move(s);
+    if (cut_surface) *cut_surface = std::move(full);
   } catch (const Error& e) {
     ev.status = "failed";
     ev.message = e.what();

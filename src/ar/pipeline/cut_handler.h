@@ -9,6 +9,7 @@
 #include "ar/pipeline/frame_observer.h"
 #include "ar/pipeline/pipeline_options.h"
 #include "core/mesh.h"
+#include "cutting/cut_extrusion.h"
 #include "cutting/tet_cutter.h"
 #include "mechanics/embedding.h"
 #include "mechanics/mechanical_state.h"
@@ -53,8 +54,14 @@ class CutHandler {
   const cutting::CuttableMesh& mesh() const { return *mesh_; }
 
  private:
+  bool Applied(const Eigen::Vector3d& p) const;
+  // The strips of the polyline's segments that have a point not applied before.
+  SurfaceMesh NewPart(const std::vector<Eigen::Vector3d>& polyline_mm,
+                      const Eigen::Vector3d& eye_mm, const cutting::CutExtrusionOptions& ext) const;
+
   CuttingStageOptions options_;
   std::unique_ptr<cutting::CuttableMesh> mesh_;
+  std::vector<Eigen::Vector3d> applied_points_;  // polyline points of applied events
 };
 
 }  // namespace arreg::pipeline

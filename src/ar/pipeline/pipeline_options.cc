@@ -34,6 +34,10 @@ void CuttingStageOptions::Check() const {
                     "cutting.spring_margin_mm", "must be >= 0, got ", spring_margin_mm);
   ARREG_CHECK_INPUT(std::isfinite(extrusion_margin_mm) && extrusion_margin_mm >= 0, "",
                     "cutting.extrusion_margin_mm", "must be >= 0, got ", extrusion_margin_mm);
+  ARREG_CHECK_INPUT(std::isfinite(snap_epsilon) && snap_epsilon >= 0, "", "cutting.snap_epsilon",
+                    "must be >= 0, got ", snap_epsilon);
+  ARREG_CHECK_INPUT(std::isfinite(on_surface_tolerance) && on_surface_tolerance >= 0, "",
+                    "cutting.on_surface_tolerance", "must be >= 0, got ", on_surface_tolerance);
   ARREG_CHECK_INPUT(method == "flips" || method == "bielser", "", "cutting.method",
                     "must be \"flips\" or \"bielser\", got \"", method, "\"");
 }
@@ -122,6 +126,8 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("spring_margin_mm", &o->spring_margin_mm);
   r.Optional("extrusion_margin_mm", &o->extrusion_margin_mm);
   r.OptionalChoice("method", {"flips", "bielser"}, &o->method);
+  r.Optional("snap_epsilon", &o->snap_epsilon);
+  r.Optional("on_surface_tolerance", &o->on_surface_tolerance);
   r.Finish();
 }
 
@@ -205,7 +211,9 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                   {"cut_point_radius_mm", o.cutting.detector.cut_point_radius_mm},
                   {"spring_margin_mm", o.cutting.spring_margin_mm},
                   {"extrusion_margin_mm", o.cutting.extrusion_margin_mm},
-                  {"method", o.cutting.method}};
+                  {"method", o.cutting.method},
+                  {"snap_epsilon", o.cutting.snap_epsilon},
+                  {"on_surface_tolerance", o.cutting.on_surface_tolerance}};
   j["render"] = {{"enabled", o.render.enabled},
                  {"supersampling", o.render.supersampling},
                  {"organ_opacity", o.render.organ_opacity},

@@ -52,6 +52,16 @@ struct CuttingStageOptions {
   double extrusion_margin_mm = 10.0;
   // Remeshing method: "flips" (default, thesis 5.1) or "bielser".
   std::string method = "flips";
+  // Snapping threshold eps (unitless, >= 0): a vertex of a crossed edge moves onto S when its
+  // distance to S is below eps x the mean rest edge length (thesis 5.1.3; its figures use
+  // 0 to 0.3). Default 0.1.
+  double snap_epsilon = 0.1;
+  // Vertices closer to S than this x the mean rest edge length count as lying on S (marked
+  // for separation, their edges not crossed; unitless, >= 0). Successive events cut with S
+  // extruded in a later frame, which passes near, not through, the vertices an earlier event
+  // put on the crack; a tolerance of a fraction of an element merges the two instead of
+  // cutting slivers next to the crack. Default 0.25.
+  double on_surface_tolerance = 0.25;
   void Check() const;
 };
 

@@ -1,0 +1,140 @@
+// The pipeline's cut application (CutHandler): successive events on one persistent topology
+// while the model moves between them, springs and internal structures following.
+#include "ar/pipeline/cut_handler.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/mesh_generators.h"
+#include "core/mesh_ops.h"
+#include "cutting/mesh_checks.h"
+
+namespace arreg::pipeline {
+namespace {
+
+struct Model {
+  mechanics::MechanicalState state;
+  mechanics::SpringEnergy springs;
+  std::vector<FeatureView> features;
+  RowMatX3d features_rest;
+  mechanics::EmbeddedPoints feature_embedding;
+  std::vector<SurfaceMesh> internal;
+  std::vector<RowMatX3d> internal_rest;
+  std::vector<mechanics::EmbeddedPoints> internal_embedding;
+
+  explicit Model(const TetMesh& mesh) : state(mesh, mechanics::Material()) {
+    // Features on a grid on the top face (z = 20), one spring each.
+    for (double x = 2; x < 40; x += 4)
+      for (double y = 2; y < 40; y += 4) {
+        features_rest.conservativeResize(features_rest.rows() + 1, 3);
+        features_rest.row(features_rest.rows() - 1) << x, y, 19.5;
+      }
+    feature_embedding =
+        mechanics::EmbeddedPoints::Embed(features_rest, state.rest_positions(), state.tetrahedra());
+    for (int r = 0; r < features_rest.rows(); ++r) {
+      FeatureView v;
+      v.id = r;
+      v.spring = springs.Add(feature_embedding[r], features_rest.row(r).transpose(), 100.0);
+      v.alive = v.spring_active = true;
+      features.push_back(v);
+    }
+    // One internal structure: a horizontal sheet of triangles at z = 10.
+    SurfaceMesh sheet;
+    sheet.vertices.resize(0, 3);
+    const int n = 9;
+    sheet.vertices.resize(n * n, 3);
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) sheet.vertices.row(i * n + j) << 4 + 4 * i, 4 + 4 * j, 10.1;
+    sheet.faces.resize(2 * (n - 1) * (n - 1), 3);
+    int f = 0;
+    for (int i = 0; i + 1 < n; ++i)
+      for (int j = 0; j + 1 < n; ++j) {
+        const int a = i * n + j;
+        sheet.faces.row(f++) << a, a + n, a + 1;
+        sheet.faces.row(f++) << a + 1, a + n, a + n + 1;
+      }
+    internal.push_back(sheet);
+    internal_rest.push_back(sheet.vertices);
+    internal_embedding.push_back(mechanics::EmbeddedPoints::Embed(
+        sheet.vertices, state.rest_positions(), state.tetrahedra()));
+  }
+
+  CutTargets Targets() {
+    return {&state,    &springs,       &features,          &features_rest, &feature_embedding,
+            &internal, &internal_rest, &internal_embedding};
+  }
+};
+
+// A cut growing across a 40 x 40 x 20 mm block seen from above, one cut point per event
+// (the detector's polyline with a 7 mm look-ahead), while the block moves and bends a little
+// between events: every event applies on the persistent topology, the state stays numbered
+// like it, the rest volume is kept, the growth stays that of one cut (the crack is not cut
+// again), and at the end the block is in two pieces, the sheet inside cut along the line.
+TEST(CutHandler, ProgressiveCutOnAMovingModel) {
+  const TetMesh block =
+      MakeBoxTetMesh(Eigen::Vector3d(40, 40, 20), Eigen::Vector3i(8, 8, 4), BoxTetSplit::kSix);
+  Model model(block);
+  const double v0 = cutting::CheckMeshInvariants(block).total_volume;
+  CuttingStageOptions options;
+  CutHandler handler(options, model.state);
+  const Eigen::Vector3d eye(20, 20, 200);
+  std::vector<Eigen::Vector3d> cut_points;
+  int applied = 0;
+  const int sheet_faces = static_cast<int>(model.internal[0].faces.rows());
+  for (int event = 0; event < 12; ++event) {
+    // The model moves: a translation and a slight bend, different at every event.
+    const double s = 0.3 * event;
+    for (int v = 0; v < model.state.num_vertices(); ++v) {
+      const Eigen::Vector3d r = model.state.rest_position(v);
+      model.state.mutable_positions().row(v) =
+          (r + Eigen::Vector3d(s, -0.5 * s, 0.002 * s * (r.x() - 20) * (r.x() - 20) / 10))
+              .transpose();
+    }
+    // Cut points follow the deformed top surface along y ~ 20.
+    const double x = -4 + 4.0 * event;
+    const Eigen::Vector3d rest_point(x, 20.3 + 0.4 * std::sin(event), 20);
+    cut_points.push_back(rest_point + Eigen::Vector3d(s, -0.5 * s, 0));
+    if (cut_points.size() < 2) continue;
+    std::vector<Eigen::Vector3d> extended = cut_points;
+    const Eigen::Vector3d dir =
+        (cut_points.back() - cut_points[cut_points.size() - 2]).normalized();
+    extended.push_back(cut_points.back() + 7.0 * dir);
+    const int before = model.state.num_vertices();
+    const CutEvent ev = handler.Apply(event, extended, eye, model.Targets());
+    ASSERT_TRUE(ev.status == "cut" || ev.status == "no-crossing")
+        << "event " << event << ": " << ev.status << " " << ev.message;
+    if (ev.status == "cut") ++applied;
+    EXPECT_LT(model.state.num_vertices() - before, 120) << "event " << event;
+    ASSERT_EQ(model.state.num_vertices(), handler.mesh().num_vertices());
+    ASSERT_EQ(model.state.num_tetrahedra(), handler.mesh().num_tetrahedra());
+    const cutting::MeshInvariants inv = cutting::CheckMeshInvariants(model.state.RestMesh());
+    ASSERT_TRUE(inv.ok()) << "event " << event << ": " << inv.ToString();
+    ASSERT_NEAR(inv.total_volume, v0, 1e-9 * v0);
+  }
+  EXPECT_GE(applied, 9);
+  int pieces = 0;
+  ConnectedComponents(model.state.RestMesh(), Adjacency::kVertex, &pieces);
+  EXPECT_EQ(pieces, 2);
+  // Springs near the cut line were removed; those far from it act still.
+  int removed_near = 0, kept_far = 0, near = 0, far = 0;
+  for (int r = 0; r < model.features_rest.rows(); ++r) {
+    const double d = std::abs(model.features_rest(r, 1) - 20.3);
+    if (d < 1.5) {
+      ++near;
+      removed_near += !model.features[r].spring_active;
+    } else if (d > 6) {
+      ++far;
+      kept_far += model.features[r].spring_active;
+    }
+  }
+  EXPECT_EQ(removed_near, near);
+  EXPECT_EQ(kept_far, far);
+  // The internal sheet lost the triangles across the cut (one row of cells: 16 triangles).
+  const int removed = sheet_faces - static_cast<int>(model.internal[0].faces.rows());
+  EXPECT_GE(removed, 16);
+  EXPECT_LE(removed, 32);
+}
+
+}  // namespace
+}  // namespace arreg::pipeline
