@@ -179,17 +179,31 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   result->mean_measure = mean;
   const double threshold =
       std::max(options_.outlier_factor * mean, options_.min_outlier_measure_mm);
-  for (int k = 0; k < num_pairs; ++k)
-    if (result->measure[k] > threshold) result->outliers.push_back(k);
+  for (int k = 0; k < num_pairs; ++k) {
+    if (result->measure[k] <= threshold) continue;
+    if (options_.require_opening) {
+      const int l = pairs_[k].first, m = pairs_[k].second;
+      const double image2 = (target_mm_.row(l) - target_mm_.row(m)).squaredNorm();
+      const double model2 = (model_mm_.row(l) - model_mm_.row(m)).squaredNorm();
+      if (image2 <= model2) continue;
+    }
+    result->outliers.push_back(k);
+  }
 
   // Cut points: the mean stays that of the frame while further points are inserted, and only the
   // pairs still present count (removed ones were pruned around earlier points).
   candidates_ = result->outliers;
   for (int inserted = 0; inserted < options_.max_cut_points_per_frame; ++inserted) {
     if (static_cast<int>(candidates_.size()) < options_.min_outliers) break;
+    if (options_.cluster_outliers) {
+      SelectCluster(*result);
+      if (static_cast<int>(cluster_.size()) < options_.min_outliers) break;
+    } else {
+      cluster_ = candidates_;
+    }
     Eigen::Vector3d current = Eigen::Vector3d::Zero(), initial = Eigen::Vector3d::Zero();
     double weight = 0.0;
-    for (int k : candidates_) {
+    for (int k : cluster_) {
       const int l = result->pairs[k].first, m = result->pairs[k].second;
       const double w = result->measure[k];
       current += w * 0.5 * (model_mm_.row(l) + model_mm_.row(m)).transpose();
@@ -200,7 +214,7 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
     point.position_mm = current / weight;
     point.initial_position_mm = initial / weight;
     point.frame = frame_;
-    point.num_outliers = static_cast<int>(candidates_.size());
+    point.num_outliers = static_cast<int>(cluster_.size());
     const bool front = InsertCutPoint(point);
     result->new_cut_points.push_back(point);
     if (polyline_.size() >= 2) {
@@ -220,11 +234,30 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
       }
     }
     RemovePairsNear(point.position_mm, &result->pairs_removed_by_cut);
+    // The outliers that made the point are explained by it: without their removal, a cluster
+    // whose pairs pass outside the r_pc sphere would insert the same point again next frame.
+    if (options_.cluster_outliers) {
+      const auto less = [](const FeaturePair& a, const FeaturePair& b) {
+        return a.first != b.first ? a.first < b.first : a.second < b.second;
+      };
+      for (int k : cluster_) {
+        const FeaturePair& p = result->pairs[k];
+        const auto it = std::lower_bound(pairs_.begin(), pairs_.end(), p, less);
+        if (it != pairs_.end() && it->first == p.first && it->second == p.second) {
+          pairs_.erase(it);
+          ++result->pairs_removed_by_cut;
+        }
+      }
+      std::sort(cluster_.begin(), cluster_.end());
+    }
     // Outliers whose pair has just been removed no longer count.
     candidates_.erase(
         std::remove_if(candidates_.begin(), candidates_.end(),
                        [&](int k) {
                          const FeaturePair& p = result->pairs[k];
+                         if (options_.cluster_outliers &&
+                             std::binary_search(cluster_.begin(), cluster_.end(), k))
+                           return true;
                          return SquaredDistanceToSegment(model_mm_.row(p.first).transpose(),
                                                          model_mm_.row(p.second).transpose(),
                                                          point.position_mm) <
@@ -237,6 +270,33 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   for (const CutPoint& p : polyline_) result->polyline_mm.push_back(p.position_mm);
   result->extended_polyline_mm = ExtendedPolyline(false);
   ++frame_;
+}
+
+void CutDetector::SelectCluster(const DetectionResult& result) {
+  // Seed: the candidate whose r_F neighbourhood (of current pair midpoints) holds the largest
+  // sum of mu; the cluster is that neighbourhood. O(#candidates^2), and candidates are few.
+  const double r2 = options_.neighbour_radius_mm * options_.neighbour_radius_mm;
+  auto midpoint = [&](int k) -> Eigen::Vector3d {
+    const FeaturePair& p = result.pairs[k];
+    return 0.5 * (model_mm_.row(p.first) + model_mm_.row(p.second)).transpose();
+  };
+  double best_sum = -1.0;
+  int best = -1;
+  for (int a : candidates_) {
+    const Eigen::Vector3d ca = midpoint(a);
+    double sum = 0.0;
+    for (int b : candidates_)
+      if ((midpoint(b) - ca).squaredNorm() <= r2) sum += result.measure[b];
+    if (sum > best_sum) {
+      best_sum = sum;
+      best = a;
+    }
+  }
+  cluster_.clear();
+  if (best < 0) return;
+  const Eigen::Vector3d centre = midpoint(best);
+  for (int b : candidates_)
+    if ((midpoint(b) - centre).squaredNorm() <= r2) cluster_.push_back(b);
 }
 
 void CutDetector::RemovePairsNear(const Eigen::Vector3d& centre_mm, int* removed) {

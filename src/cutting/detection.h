@@ -31,8 +31,26 @@ struct CutDetectorOptions {
   // r_pc [mm]: pairs whose current segment comes closer than this to a new cut point are removed,
   // and the look-ahead point lies at this distance beyond the extremity. Default 7.
   double cut_point_radius_mm = 7.0;
-  // Variant of mu2 (eq. 7.10). Default kModelRegularised.
-  CutMeasure measure = CutMeasure::kModelRegularised;
+  // Variant of mu2 (eq. 7.10). Default kImageOnly, as in the thesis's kidney experiments (table
+  // 7.1), whose parameters are the defaults here: a pair across an opening cut gets a large
+  // delta^1 while the uncut model keeps delta^t small, and pairs on one lip (whose image
+  // distance shrinks as the cut side relaxes) are not amplified.
+  CutMeasure measure = CutMeasure::kImageOnly;
+  // Only pairs that open are outliers: their targets are farther apart than their model points
+  // (delta^1 > delta^t). Not in the thesis: a cut or tear separates its two sides, so a pair
+  // across it always opens, whereas a feature mistracked or left behind on one lip of a cut has
+  // a large |d_l| that makes mu1 large towards its same-side neighbours too (a star of
+  // outliers around one feature, which pulled the barycentre off the seam). false gives the
+  // thesis's test. Default true.
+  bool require_opening = true;
+  // Only one cluster of outliers makes a cut point: the outliers whose pair midpoints lie within
+  // r_F of the outlier whose r_F neighbourhood has the largest sum of mu; n applies to that
+  // cluster, and its pairs are removed with those crossing the r_pc sphere. Not in the thesis,
+  // whose barycentre of all outliers falls between two separate groups (the two ends of a cut,
+  // or a cut and a mistracked feature) and, since none of their pairs crosses the sphere there,
+  // is inserted again at the same place in every following frame. false gives the thesis's
+  // barycentre of all outliers. Default true.
+  bool cluster_outliers = true;
   // Absolute floor on mu [mm]: pairs at or below it are never outliers. Not in the thesis, whose
   // test is purely relative; with real tracking, noise keeps mean(mu) away from 0, but in a
   // nearly static or noise-free sequence mean(mu) -> 0 and sub-pixel differences would pass
@@ -124,6 +142,8 @@ class CutDetector {
   // Inserts at the nearest extremity; returns true when it went to the front.
   bool InsertCutPoint(const CutPoint& point);
   bool ExtremityAtBorder(bool front) const;
+  // Fills cluster_ from candidates_ (see CutDetectorOptions::cluster_outliers).
+  void SelectCluster(const DetectionResult& result);
 
   CutDetectorOptions options_;
   RowMatX3d initial_mm_;  // (#F x 3) p^0
@@ -139,6 +159,7 @@ class CutDetector {
   RowMatX3d model_mm_;   // (#F x 3) p^t of the alive features
   RowMatX3d target_mm_;  // (#F x 3) p^1
   std::vector<int> candidates_;
+  std::vector<int> cluster_;
 };
 
 }  // namespace arreg::cutting

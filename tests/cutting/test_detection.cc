@@ -296,6 +296,44 @@ TEST(CutDetector, ImageOnlyMeasureAlsoFindsTheSeam) {
   }
 }
 
+// One feature's target jumps 3 mm in +x while the model stays: all its pairs have the same mu1,
+// but only those whose targets separate (its neighbours at -x) are outliers by default; the
+// thesis's test (require_opening = false) also takes the pairs that close up.
+TEST(CutDetector, OnlyOpeningPairsAreOutliers) {
+  const FeatureGrid g = MakeGrid(12, 12, 4.8);
+  const int moved = 5 * 12 + 5;
+  RowMatX3d target = g.p0;
+  target(moved, 0) += 3.0;
+  for (bool require_opening : {true, false}) {
+    CutDetectorOptions o;
+    o.require_opening = require_opening;
+    o.min_outlier_measure_mm = 0.0;
+    CutDetector detector(o);
+    detector.Initialize(g.p0, g.ids);
+    DetectionResult r;
+    detector.Update(MakeFrame(g, target, g.p0), &r);
+    int opening = 0, closing = 0;
+    for (size_t k = 0; k < r.pairs.size(); ++k) {
+      const int l = r.pairs[k].first, m = r.pairs[k].second;
+      if (l != moved && m != moved) {
+        EXPECT_EQ(r.measure[k], 0.0);
+        continue;
+      }
+      const double image = (target.row(l) - target.row(m)).norm();
+      const double model = (g.p0.row(l) - g.p0.row(m)).norm();
+      const bool outlier = std::count(r.outliers.begin(), r.outliers.end(), k) == 1;
+      if (image > model) ++opening;
+      if (image < model) ++closing;
+      if (image > model || !require_opening)
+        EXPECT_EQ(outlier, r.measure[k] > o.outlier_factor * r.mean_measure) << "pair " << k;
+      else
+        EXPECT_FALSE(outlier) << "pair " << k << " closes up";
+    }
+    EXPECT_GT(opening, 5);
+    EXPECT_GT(closing, 5);
+  }
+}
+
 TEST(CutDetector, PairsCrossingTheCutPointSphereAreRemoved) {
   const FeatureGrid g = MakeGrid();
   CutDetectorOptions options;
