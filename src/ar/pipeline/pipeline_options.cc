@@ -123,6 +123,14 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("outlier_factor", &o->detector.outlier_factor);
   r.Optional("min_outliers", &o->detector.min_outliers);
   r.Optional("cut_point_radius_mm", &o->detector.cut_point_radius_mm);
+  std::string measure =
+      o->detector.measure == cutting::CutMeasure::kImageOnly ? "image" : "model";
+  r.OptionalChoice("measure", {"image", "model"}, &measure);
+  o->detector.measure =
+      measure == "image" ? cutting::CutMeasure::kImageOnly : cutting::CutMeasure::kModelRegularised;
+  r.Optional("require_opening", &o->detector.require_opening);
+  r.Optional("cluster_outliers", &o->detector.cluster_outliers);
+  r.Optional("min_outlier_measure_mm", &o->detector.min_outlier_measure_mm);
   r.Optional("spring_margin_mm", &o->spring_margin_mm);
   r.Optional("extrusion_margin_mm", &o->extrusion_margin_mm);
   r.OptionalChoice("method", {"flips", "bielser"}, &o->method);
@@ -209,6 +217,12 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                   {"outlier_factor", o.cutting.detector.outlier_factor},
                   {"min_outliers", o.cutting.detector.min_outliers},
                   {"cut_point_radius_mm", o.cutting.detector.cut_point_radius_mm},
+                  {"measure", o.cutting.detector.measure == cutting::CutMeasure::kImageOnly
+                                  ? "image"
+                                  : "model"},
+                  {"require_opening", o.cutting.detector.require_opening},
+                  {"cluster_outliers", o.cutting.detector.cluster_outliers},
+                  {"min_outlier_measure_mm", o.cutting.detector.min_outlier_measure_mm},
                   {"spring_margin_mm", o.cutting.spring_margin_mm},
                   {"extrusion_margin_mm", o.cutting.extrusion_margin_mm},
                   {"method", o.cutting.method},
