@@ -255,6 +255,54 @@ TEST(FeatureTracker, OutliersAreNeverReidentified) {
   EXPECT_GT(outliers, 0);
 }
 
+TEST(LucasKanade, RecoversAShiftFromZeroOrFromAGuessAndTheBackwardPassReturns) {
+  const cv::Mat a = Texture(320, 320, 16);
+  cv::Mat b;
+  const cv::Point2f shift(7.3f, -4.6f);
+  cv::warpAffine(a, b, cv::Matx23d(1, 0, shift.x, 0, 1, shift.y), a.size(), cv::INTER_CUBIC,
+                 cv::BORDER_REFLECT);
+  LucasKanadeOptions options;
+  LucasKanadePyramid pa, pb;
+  pa.Build(a, options.pyramid_levels, options.window_px);
+  pb.Build(b, options.pyramid_levels, options.window_px);
+  std::vector<cv::Point2f> start;
+  for (int y = 40; y < 290; y += 25)
+    for (int x = 40; x < 290; x += 25) start.emplace_back(x + 0.25f, y + 0.6f);
+  auto median_error = [&](const std::vector<cv::Point2f>& end, cv::Point2f expected_shift) {
+    std::vector<double> e;
+    for (size_t i = 0; i < end.size(); ++i)
+      e.push_back(cv::norm(end[i] - start[i] - expected_shift));
+    std::nth_element(e.begin(), e.begin() + e.size() / 2, e.end());
+    return e[e.size() / 2];
+  };
+  std::vector<cv::Point2f> end;
+  std::vector<uint8_t> found;
+  const LucasKanadeSummary summary = TrackLucasKanade(pa, pb, start, options, false, &end, &found);
+  EXPECT_EQ(summary.found, static_cast<int>(start.size()));
+  EXPECT_LT(median_error(end, shift), 0.1);
+  // The same from a guess 2 px off, with fewer iterations at the coarse levels.
+  std::vector<cv::Point2f> guessed(start.size());
+  for (size_t i = 0; i < start.size(); ++i) guessed[i] = start[i] + shift + cv::Point2f(2, -1.5f);
+  const LucasKanadeSummary from_guess =
+      TrackLucasKanade(pa, pb, start, options, true, &guessed, &found);
+  EXPECT_EQ(from_guess.found, static_cast<int>(start.size()));
+  EXPECT_LT(median_error(guessed, shift), 0.1);
+  // Backward from the end points, started at the start and from level 1 (the
+  // tracker's consistency check): it returns to the start.
+  LucasKanadeOptions back = options;
+  back.pyramid_levels = options.backward_pyramid_levels;
+  back.epsilon_px = options.backward_epsilon_px;
+  std::vector<cv::Point2f> returned = start;
+  TrackLucasKanade(pb, pa, end, back, true, &returned, &found);
+  EXPECT_LT(median_error(returned, cv::Point2f(0, 0)), 0.1);
+  // A flat image has no texture to follow.
+  LucasKanadePyramid flat;
+  flat.Build(cv::Mat(320, 320, CV_8UC1, cv::Scalar(100)), options.pyramid_levels,
+             options.window_px);
+  const LucasKanadeSummary none = TrackLucasKanade(flat, flat, start, options, false, &end, &found);
+  EXPECT_EQ(none.found, 0);
+}
+
 TEST(SpatioTemporalOutliers, FlagsAJumpAmongSlowNeighboursButNotAPan) {
   std::vector<cv::Point2f> positions, displacements;
   for (int y = 0; y < 10; ++y)
