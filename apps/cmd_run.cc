@@ -81,8 +81,10 @@ int RunRun(int argc, char** argv) {
   parser.AddFlag("show-targets", &show_targets, "draw the lifted targets");
   parser.AddFlag("show-springs", &show_springs, "draw the springs (anchor to target)");
   parser.AddDouble("opacity", &opacity, "A", "organ opacity in [0, 1] (default 0.35)");
-  parser.AddInt("supersampling", &supersampling, "S", "anti-aliasing samples per pixel and axis");
-  parser.AddInt("crf", &crf, "Q", "x264 quality of overlay.mp4 (default 18)");
+  parser.AddInt("supersampling", &supersampling, "S",
+                "1: one sample per pixel with analytic edge anti-aliasing (default); 2..8: "
+                "supersampled reference renderer");
+  parser.AddInt("crf", &crf, "Q", "x264 quality of overlay.mp4 (default 23)");
   parser.AddDouble("stiffness", &stiffness, "N_PER_M", "feature spring stiffness (default 500)");
   parser.AddInt("substeps", &substeps, "N", "implicit Euler sub-steps per frame (default 1)");
   parser.AddString("lifting", &lifting, "surface|plane", "lifting target (default surface)");

@@ -84,7 +84,7 @@ struct RenderStageOptions {
 // What is written into the run folder (docs/run-format.md).
 struct OutputStageOptions {
   bool video = true;  // overlay.mp4; default true
-  int crf = 18;       // x264 quality of overlay.mp4 (0..51); default 18
+  int crf = 23;       // x264 quality of overlay.mp4 (0..51); x264's own default
   // x264 speed preset of overlay.mp4; default "ultrafast": at CRF 18 the overlay looks the
   // same, the file is larger, and encoding costs a fraction of "veryfast" (docs/pipeline.md).
   std::string preset = "ultrafast";
