@@ -19,6 +19,11 @@ constexpr float kCoarseEpsilonPx = 0.1f;
 void LucasKanadeOptions::Check() const {
   ARREG_CHECK_INPUT(window_px >= 5 && window_px % 2 == 1, "", "LucasKanadeOptions.window_px",
                     "must be odd and >= 5, got ", window_px);
+  ARREG_CHECK_INPUT(coarse_window_px >= 5 && coarse_window_px % 2 == 1, "",
+                    "LucasKanadeOptions.coarse_window_px", "must be odd and >= 5, got ",
+                    coarse_window_px);
+  ARREG_CHECK_INPUT(window_px <= 63, "", "LucasKanadeOptions.window_px", "must be <= 63, got ",
+                    window_px);
   ARREG_CHECK_INPUT(pyramid_levels >= 0 && pyramid_levels <= 8, "",
                     "LucasKanadeOptions.pyramid_levels", "must be in 0..8, got ", pyramid_levels);
   ARREG_CHECK_INPUT(max_iterations >= 1, "", "LucasKanadeOptions.max_iterations",
@@ -249,14 +254,25 @@ LucasKanadeSummary TrackLucasKanade(const LucasKanadePyramid& from, const LucasK
   const int top_level =
       std::min({options.pyramid_levels, from.num_levels() - 1, to.num_levels() - 1});
 
-  const int win = options.window_px, half = win / 2;
-  const int cols = (win + 7) / 8 * 8;
-  ARREG_ASSERT(cols <= 64, "");
-  alignas(32) float mask[64];
-  GradientMatrixFn gradient_matrix;
-  MismatchFn mismatch;
-  ChooseKernels(cols, &gradient_matrix, &mismatch);
-  for (int c = 0; c < cols; ++c) mask[c] = c < win ? 1.f : 0.f;
+  // Per level: window side, padded width, kernels (level 0 window_px, the
+  // coarser levels coarse_window_px).
+  struct LevelWindow {
+    int win, half, cols;
+    GradientMatrixFn gradient_matrix;
+    MismatchFn mismatch;
+  };
+  std::array<LevelWindow, 9> windows;
+  alignas(32) float mask[2][64];
+  for (int level = 0; level <= 8; ++level) {
+    LevelWindow& w = windows[level];
+    w.win = level == 0 ? options.window_px : std::min(options.coarse_window_px, options.window_px);
+    w.half = w.win / 2;
+    w.cols = (w.win + 7) / 8 * 8;
+    ARREG_ASSERT(w.cols <= 64, "");
+    ChooseKernels(w.cols, &w.gradient_matrix, &w.mismatch);
+  }
+  for (int k = 0; k < 2; ++k)
+    for (int c = 0; c < 64; ++c) mask[k][c] = c < windows[k].win ? 1.f : 0.f;
   const float eps2 = static_cast<float>(options.epsilon_px * options.epsilon_px);
   const float coarse_eps2 = std::max(eps2, kCoarseEpsilonPx * kCoarseEpsilonPx);
   const float min_eigen = static_cast<float>(options.min_eigen_threshold);
@@ -311,8 +327,10 @@ LucasKanadeSummary TrackLucasKanade(const LucasKanadePyramid& from, const LucasK
       const cv::Point2f p = start_px[i] * scale;
       // Window on the integer grid around the point: the translation estimated
       // is the same, and the template needs no interpolation.
-      const int x0 = static_cast<int>(std::floor(p.x + 0.5f)) - half;
-      const int y0 = static_cast<int>(std::floor(p.y + 0.5f)) - half;
+      const LevelWindow& lw = windows[level];
+      const int win = lw.win, cols = lw.cols;
+      const int x0 = static_cast<int>(std::floor(p.x + 0.5f)) - lw.half;
+      const int y0 = static_cast<int>(std::floor(p.y + 0.5f)) - lw.half;
       if (x0 < -mv.left || y0 < -mv.top || x0 + cols > value.cols + mv.right ||
           y0 + win > value.rows + mv.bottom) {
         if (level == 0) ok = false;
@@ -324,9 +342,9 @@ LucasKanadeSummary TrackLucasKanade(const LucasKanadePyramid& from, const LucasK
                               step,
                               win,
                               cols,
-                              mask};
+                              mask[level == 0 ? 0 : 1]};
       float g[3];
-      gradient_matrix(window, g);
+      lw.gradient_matrix(window, g);
       const float sxx = g[0], sxy = g[1], syy = g[2];
       const float det = sxx * syy - sxy * sxy;
       const float min_eig =
@@ -348,7 +366,7 @@ LucasKanadeSummary TrackLucasKanade(const LucasKanadePyramid& from, const LucasK
         const float fx = qx - jx, fy = qy - jy;
         const float weights[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
         float b[2];
-        mismatch(window, target.ptr<float>() + jy * step + jx, weights, b);
+        lw.mismatch(window, target.ptr<float>() + jy * step + jx, weights, b);
         const float bx = b[0], by = b[1];
         ++summary.iterations;
         ++summary.iterations_at_level[level];

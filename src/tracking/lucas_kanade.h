@@ -11,8 +11,13 @@
 namespace arreg {
 
 struct LucasKanadeOptions {
-  // Side of the square integration window, pixels (odd, >= 5). Default 21.
+  // Side of the square integration window at level 0, pixels (odd, 5..63). Default 21.
   int window_px = 21;
+  // Window side at the coarser levels (odd, >= 5; at most window_px is used).
+  // They only start the next level: 15 px there still covers 30..120 px of the
+  // image, follows the 20 px pan of RoiBorderAndIdsBehave (11 does not) and
+  // costs half the 21 px window per iteration. Default 15.
+  int coarse_window_px = 15;
   // Coarsest pyramid level (0 = no pyramid); each level halves the image.
   // Level 2 already loses a 20 px pan of a smooth texture that level 3 follows
   // (tests/tracking: RoiBorderAndIdsBehave). Default 3.
