@@ -361,16 +361,20 @@ int RunBenchMechanics(int argc, char** argv) {
       "--sweep adds \"sweep\" (one entry per mesh) and \"growth_exponent\" to the JSON.\n"
       "Run with OMP_NUM_THREADS=1 for one thread.");
   if (!parser.Parse(argc, argv)) return 0;
-  ARREG_CHECK_INPUT(s.steps >= 1, "", "--steps", "must be >= 1, got ", s.steps);
-  ARREG_CHECK_INPUT(s.refactor_iterations >= 0, "", "--refactor-iterations", "must be >= 0, got ",
-                    s.refactor_iterations);
-  ARREG_CHECK_INPUT(s.repeats >= 1, "", "--repeats", "must be >= 1, got ", s.repeats);
-  ARREG_CHECK_INPUT(s.springs >= 1, "", "--springs", "must be >= 1, got ", s.springs);
-  ARREG_CHECK_INPUT(seed >= 0, "", "--seed", "must be >= 0, got ", seed);
-  ARREG_CHECK_INPUT(std::isfinite(s.cg_tolerance) && s.cg_tolerance > 0, "", "--cg-tolerance",
-                    "must be > 0, got ", s.cg_tolerance);
-  ARREG_CHECK_INPUT(s.warm_start == "extrapolate" || s.warm_start == "velocity", "", "--warm-start",
-                    "must be extrapolate or velocity, got '", s.warm_start, "'");
+  // Bad option values are usage errors (exit code 2).
+  auto require = [](bool ok, const std::string& option, const std::string& message) {
+    if (!ok) throw UsageError(option, message);
+  };
+  require(s.steps >= 1, "--steps", "must be >= 1, got " + std::to_string(s.steps));
+  require(s.refactor_iterations >= 0, "--refactor-iterations",
+          "must be >= 0, got " + std::to_string(s.refactor_iterations));
+  require(s.repeats >= 1, "--repeats", "must be >= 1, got " + std::to_string(s.repeats));
+  require(s.springs >= 1, "--springs", "must be >= 1, got " + std::to_string(s.springs));
+  require(seed >= 0, "--seed", "must be >= 0, got " + std::to_string(seed));
+  require(std::isfinite(s.cg_tolerance) && s.cg_tolerance > 0, "--cg-tolerance",
+          "must be > 0, got " + std::to_string(s.cg_tolerance));
+  require(s.warm_start == "extrapolate" || s.warm_start == "velocity", "--warm-start",
+          "must be extrapolate or velocity, got '" + s.warm_start + "'");
   ParseLinearSolverType(s.solver);
   ParsePreconditioner(s.preconditioner);
   ParseRotationMethod(s.rotation);
@@ -380,8 +384,8 @@ int RunBenchMechanics(int argc, char** argv) {
   const std::vector<std::string> boxes = SplitCommas(
       sweep_boxes.empty() ? "box:10x3x3,box:14x4x4,box:17x5x5,box:20x6x6,box:23x7x7,box:25x8x8"
                           : sweep_boxes);
-  ARREG_CHECK_INPUT(!sweep || boxes.size() >= 2, "", "--sweep-boxes",
-                    "needs at least two meshes, got '", sweep_boxes, "'");
+  require(!sweep || boxes.size() >= 2, "--sweep-boxes",
+          "needs at least two meshes, got '" + sweep_boxes + "'");
 
   PrintHeader();
   const TetMesh mesh = LoadMesh(mesh_spec);
