@@ -97,7 +97,14 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
     co.on_surface_tolerance = options_.on_surface_tolerance;
     cutting::CutChange change;
     const cutting::CuttableMesh before = *mesh_;
-    const cutting::CutSummary cut = mesh_->Cut(cs, co, &change);
+    cutting::CutSummary cut = mesh_->Cut(cs, co, &change);
+    const double exact_tolerance = cutting::CutOptions().on_surface_tolerance;
+    if (cut.status == cutting::CutStatus::kRejected && co.on_surface_tolerance > exact_tolerance) {
+      // Vertices merged into S can make S touch the boundary in a point (manifold guard);
+      // the exact test may resolve it (a rejected event leaves the mesh unchanged).
+      co.on_surface_tolerance = exact_tolerance;
+      cut = mesh_->Cut(cs, co, &change);
+    }
     ev.message = cut.message;
     if (cut.status == cutting::CutStatus::kCut) {
       ev.status = "cut";
