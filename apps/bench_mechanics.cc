@@ -232,6 +232,7 @@ nlohmann::json ToJson(const std::string& mesh, const BenchSettings& s, const Fig
                       {"steps", f.steps},
                       {"repeats", f.repeats},
                       {"dt_s", s.dt_s},
+                      {"amplitude", s.amplitude},
                       {"ms_per_step_median", f.ms_per_step_median},
                       {"cpu_ms_per_step_median", f.cpu_ms_per_step_median},
                       {"ms_per_step_mean", f.ms_per_step_mean},
@@ -338,6 +339,8 @@ int RunBenchMechanics(int argc, char** argv) {
   parser.AddDouble("spring-stiffness", &s.stiffness, "K", "stiffness per spring in N/m");
   parser.AddDouble("youngs-modulus", &s.youngs_pa, "PA", "Young's modulus in Pa");
   parser.AddDouble("dt", &s.dt_s, "S", "time step in s (one video frame)");
+  parser.AddDouble("amplitude", &s.amplitude, "A",
+                   "amplitude of the targets' travelling wave, fraction of the mesh diagonal");
   parser.AddDouble("cg-tolerance", &s.cg_tolerance, "T",
                    "CG relative residual tolerance (the integrator's default 1e-3)");
   parser.AddInt("seed", &seed, "N", "seed of the random spring anchors");
@@ -373,6 +376,8 @@ int RunBenchMechanics(int argc, char** argv) {
   require(seed >= 0, "--seed", "must be >= 0, got " + std::to_string(seed));
   require(std::isfinite(s.cg_tolerance) && s.cg_tolerance > 0, "--cg-tolerance",
           "must be > 0, got " + std::to_string(s.cg_tolerance));
+  require(std::isfinite(s.amplitude) && s.amplitude >= 0 && s.amplitude <= 1, "--amplitude",
+          "must be in [0, 1], got " + std::to_string(s.amplitude));
   require(s.warm_start == "extrapolate" || s.warm_start == "velocity", "--warm-start",
           "must be extrapolate or velocity, got '" + s.warm_start + "'");
   ParseLinearSolverType(s.solver);
