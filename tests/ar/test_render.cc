@@ -32,6 +32,20 @@ void Square(double a, double z, double x0, RowMatX3d* v, RowMatX3i* f) {
   *f << 0, 2, 1, 0, 3, 2;
 }
 
+// True when (x, y) is strictly on the same side of the three edges of the
+// triangle (px, py) (either orientation), by the signs of the edge functions.
+bool InsideTriangle(const double px[3], const double py[3], double x, double y) {
+  int sign = 0;
+  for (int k = 0; k < 3; ++k) {
+    const int n = (k + 1) % 3;
+    const double e = (px[n] - px[k]) * (y - py[k]) - (py[n] - py[k]) * (x - px[k]);
+    const int s = e > 0 ? 1 : -1;
+    if (sign == 0) sign = s;
+    if (s != sign) return false;
+  }
+  return true;
+}
+
 TEST(Rasterizer, SquareMaskHasTheAnalyticPixelCount) {
   const RasterCamera camera = TestCamera();
   RowMatX3d v;
@@ -63,18 +77,7 @@ TEST(Rasterizer, TriangleMaskMatchesPointInTriangleCount) {
     py[k] = 100 * v(k, 1) + 23.5;
   }
   for (int y = 0; y < camera.height; ++y)
-    for (int x = 0; x < camera.width; ++x) {
-      int sign = 0;
-      bool inside = true;
-      for (int k = 0; k < 3; ++k) {
-        const int j = (k + 1) % 3;
-        const double e = (px[j] - px[k]) * (y - py[k]) - (py[j] - py[k]) * (x - px[k]);
-        const int s = e > 0 ? 1 : -1;
-        if (sign == 0) sign = s;
-        inside = inside && s == sign;
-      }
-      expected += inside;
-    }
+    for (int x = 0; x < camera.width; ++x) expected += InsideTriangle(px, py, x, y);
   EXPECT_GT(expected, 100);
   EXPECT_EQ(cv::countNonZero(mask), expected);
 }
@@ -223,19 +226,8 @@ RowMatX3f Uniform(int rows, const Eigen::Vector3f& rgb) {
 double ExactCoverage(const double px[3], const double py[3], int x, int y) {
   int hits = 0;
   for (int j = 0; j < 32; ++j)
-    for (int i = 0; i < 32; ++i) {
-      const double sx = x - 0.5 + (i + 0.5) / 32, sy = y - 0.5 + (j + 0.5) / 32;
-      int sign = 0;
-      bool inside = true;
-      for (int k = 0; k < 3; ++k) {
-        const int n = (k + 1) % 3;
-        const double e = (px[n] - px[k]) * (sy - py[k]) - (py[n] - py[k]) * (sx - px[k]);
-        const int s = e > 0 ? 1 : -1;
-        if (sign == 0) sign = s;
-        inside = inside && s == sign;
-      }
-      hits += inside;
-    }
+    for (int i = 0; i < 32; ++i)
+      hits += InsideTriangle(px, py, x - 0.5 + (i + 0.5) / 32, y - 0.5 + (j + 0.5) / 32);
   return hits / 1024.0;
 }
 
