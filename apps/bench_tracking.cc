@@ -53,8 +53,9 @@ double Median(std::vector<double> values) {
 }  // namespace
 
 int RunBenchTracking(int argc, char** argv) {
-  std::string video, json_path, clock = "cpu";
+  std::string video, json_path, tracks_csv, clock = "cpu";
   int repeats = 5;
+  bool skip_lk_500 = false;
   double hessian_threshold = FeatureTrackerOptions().surf.hessian_threshold;
   OptionParser parser("arreg bench tracking --video V [--json OUT] [options]",
                       "Times video decoding (luma), SURF detection on the first frame and "
@@ -63,6 +64,12 @@ int RunBenchTracking(int argc, char** argv) {
   parser.AddString("video", &video, "V", "video file or image folder", true);
   parser.AddString("json", &json_path, "OUT", "also write the figures to this JSON file");
   parser.AddInt("repeats", &repeats, "N", "runs per measurement (median taken)");
+  parser.AddFlag(
+      "skip-lk-500", &skip_lk_500,
+      "skip lk_500_ms (for videos where SURF at threshold 1 finds fewer than 500 points)");
+  parser.AddString("tracks-csv", &tracks_csv, "OUT",
+                   "also write the tracks of the clip (with re-identification) as CSV "
+                   "(id,frame,x_px,y_px,status)");
   parser.AddString("clock", &clock, "cpu|wall",
                    "cpu: CPU time of the benchmark thread (robust on a busy machine); wall: "
                    "elapsed time");
@@ -72,8 +79,10 @@ int RunBenchTracking(int argc, char** argv) {
       "Figures: decode_ms_per_frame (ReadGray), detect_ms (Fast-Hessian + orientation on\n"
       "frame 0), describe_ms (64-D descriptors of those points), track_ms_per_frame\n"
       "(FeatureTracker::Track incl. pyramid, forward-backward check, filters and\n"
-      "re-identification; track_no_reid_ms_per_frame without the latter),\n"
+      "re-identification; track_no_reid_ms_per_frame without the latter,\n"
+      "track_whole_frame_reid_ms_per_frame with SURF on the whole frame for it),\n"
       "lk_500_ms (Track() of 500 features detected in frame f-1 into frame f, f = 1..10),\n"
+      "lk_500_opencv_ms (the same with OpenCV's calcOpticalFlowPyrLK as the LK backend),\n"
       "features_initial,\n"
       "features_final (still tracked at the last frame).");
   if (!parser.Parse(argc, argv)) return 0;
@@ -129,7 +138,7 @@ int RunBenchTracking(int argc, char** argv) {
     double ms_per_frame = 0, mean_active = 0;
     int initial = 0, final = 0, reidentified = 0;
   };
-  auto track_clip = [&](const FeatureTrackerOptions& clip_options) {
+  auto track_clip = [&](const FeatureTrackerOptions& clip_options, const std::string& csv_path) {
     std::vector<double> runs;
     ClipRun result;
     for (int run = 0; run < repeats; ++run) {
@@ -144,16 +153,24 @@ int RunBenchTracking(int argc, char** argv) {
         total_ms += MillisecondsSince(start);
       }
       result.final = tracker.num_active();
+      if (run == 0 && !csv_path.empty()) tracker.store().WriteCsv(csv_path);
       result.mean_active = active_sum / (frames.size() - 1);
       runs.push_back(total_ms / (frames.size() - 1));
     }
     result.ms_per_frame = Median(runs);
     return result;
   };
-  const ClipRun clip = track_clip(options);
   FeatureTrackerOptions no_reid_options = options;
   no_reid_options.reidentify.enabled = false;
-  const ClipRun clip_no_reid = track_clip(no_reid_options);
+  const ClipRun clip_no_reid = track_clip(no_reid_options, "");
+  // Re-identification with SURF on the whole frame (the reference the windows
+  // around the predictions reproduce): what the windows save.
+  FeatureTrackerOptions whole_frame_options = options;
+  whole_frame_options.reidentify.search_near_predictions = false;
+  const ClipRun clip_whole_frame = track_clip(whole_frame_options, "");
+  // The default last: the first clip measured in a process read up to 1.5 ms
+  // per frame higher (fresh buffers), which hid the difference to the above.
+  const ClipRun clip = track_clip(options, tracks_csv);
   const int features_initial = clip.initial, features_final = clip.final;
 
   // One tracking step with exactly 500 features: for each frame pair (f-1, f),
@@ -166,22 +183,32 @@ int RunBenchTracking(int argc, char** argv) {
   FeatureTrackerOptions options_500 = options;
   options_500.max_features = 500;
   options_500.surf.hessian_threshold = 1.0;
-  std::vector<double> lk_500_runs;
   int lk_500_features = 0;
   const size_t lk_500_frames = std::min<size_t>(10, frames.size() - 1);
-  for (int run = 0; run < repeats; ++run) {
-    double total_ms = 0;
-    FeatureTracker tracker(options_500);
-    for (size_t f = 1; f <= lk_500_frames; ++f) {
-      lk_500_features = tracker.Initialize(frames[f - 1]).num_active;
-      ARREG_CHECK_INPUT(lk_500_features == 500, video, "frame " + std::to_string(f - 1), "only ",
-                        lk_500_features, " SURF points at threshold 1 (need 500)");
-      const auto start = Clock::now();
-      tracker.Track(frames[f]);
-      total_ms += MillisecondsSince(start);
+  auto lk_500 = [&](LucasKanadeBackend backend) {
+    FeatureTrackerOptions backend_options = options_500;
+    backend_options.lk.backend = backend;
+    std::vector<double> runs;
+    for (int run = 0; run < repeats; ++run) {
+      double total_ms = 0;
+      FeatureTracker tracker(backend_options);
+      for (size_t f = 1; f <= lk_500_frames; ++f) {
+        lk_500_features = tracker.Initialize(frames[f - 1]).num_active;
+        ARREG_CHECK_INPUT(lk_500_features == 500, video, "frame " + std::to_string(f - 1), "only ",
+                          lk_500_features,
+                          " SURF points at threshold 1 (need 500; --skip-lk-500 skips this)");
+        const auto start = Clock::now();
+        tracker.Track(frames[f]);
+        total_ms += MillisecondsSince(start);
+      }
+      runs.push_back(total_ms / lk_500_frames);
     }
-    lk_500_runs.push_back(total_ms / lk_500_frames);
-  }
+    return Median(runs);
+  };
+  // Ours (the default) and OpenCV's calcOpticalFlowPyrLK on the same pyramids,
+  // window, levels and termination: why ours is the default.
+  const double lk_500_ms = skip_lk_500 ? 0.0 : lk_500(LucasKanadeBackend::kArreg);
+  const double lk_500_opencv_ms = skip_lk_500 ? 0.0 : lk_500(LucasKanadeBackend::kOpenCv);
 
   nlohmann::json out;
   out["video"] = video;
@@ -201,7 +228,12 @@ int RunBenchTracking(int argc, char** argv) {
   out["reidentified"] = clip.reidentified;
   out["track_no_reid_ms_per_frame"] = clip_no_reid.ms_per_frame;
   out["features_final_no_reid"] = clip_no_reid.final;
-  out["lk_500_ms"] = Median(lk_500_runs);
+  out["track_whole_frame_reid_ms_per_frame"] = clip_whole_frame.ms_per_frame;
+  out["features_final_whole_frame_reid"] = clip_whole_frame.final;
+  if (!skip_lk_500) {
+    out["lk_500_ms"] = lk_500_ms;
+    out["lk_500_opencv_ms"] = lk_500_opencv_ms;
+  }
   out["lk_500_features"] = lk_500_features;
   out["features_initial"] = features_initial;
   out["features_final"] = features_final;
@@ -219,8 +251,17 @@ int RunBenchTracking(int argc, char** argv) {
       "  track_no_reid_ms_per_frame %8.3f  (re-identification off: %d features at the end)\n",
       clip_no_reid.ms_per_frame, clip_no_reid.final);
   std::printf(
-      "  lk_500_ms            %8.3f  (Track() of %d features, frame pairs 0-1 .. %zu-%zu)\n",
-      Median(lk_500_runs), lk_500_features, lk_500_frames - 1, lk_500_frames);
+      "  track_whole_frame_reid_ms_per_frame %8.3f  (SURF on the whole frame: %d "
+      "re-identifications, "
+      "%d features at the end)\n",
+      clip_whole_frame.ms_per_frame, clip_whole_frame.reidentified, clip_whole_frame.final);
+  if (!skip_lk_500) {
+    std::printf(
+        "  lk_500_ms            %8.3f  (Track() of %d features, frame pairs 0-1 .. %zu-%zu)\n",
+        lk_500_ms, lk_500_features, lk_500_frames - 1, lk_500_frames);
+    std::printf("  lk_500_opencv_ms     %8.3f  (the same with cv::calcOpticalFlowPyrLK)\n",
+                lk_500_opencv_ms);
+  }
   std::printf("  features_initial     %8d\n", features_initial);
   std::printf("  features_final       %8d\n", features_final);
   if (!json_path.empty()) {

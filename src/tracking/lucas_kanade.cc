@@ -16,7 +16,20 @@ namespace {
 constexpr float kCoarseEpsilonPx = 0.1f;
 }  // namespace
 
+const char* LucasKanadeBackendName(LucasKanadeBackend backend) {
+  switch (backend) {
+    case LucasKanadeBackend::kArreg:
+      return "arreg";
+    case LucasKanadeBackend::kOpenCv:
+      return "opencv";
+  }
+  return "unknown";
+}
+
 void LucasKanadeOptions::Check() const {
+  ARREG_CHECK_INPUT(backend == LucasKanadeBackend::kArreg || backend == LucasKanadeBackend::kOpenCv,
+                    "", "LucasKanadeOptions.backend", "unknown backend ",
+                    static_cast<int>(backend));
   ARREG_CHECK_INPUT(window_px >= 5 && window_px % 2 == 1, "", "LucasKanadeOptions.window_px",
                     "must be odd and >= 5, got ", window_px);
   ARREG_CHECK_INPUT(coarse_window_px >= 5 && coarse_window_px % 2 == 1, "",
@@ -253,6 +266,21 @@ LucasKanadeSummary TrackLucasKanade(const LucasKanadePyramid& from, const LucasK
       !from.empty() && !to.empty() && from.float_image(0).size() == to.float_image(0).size(), "");
   const int top_level =
       std::min({options.pyramid_levels, from.num_levels() - 1, to.num_levels() - 1});
+
+  if (options.backend == LucasKanadeBackend::kOpenCv) {
+    // end_px holds the start (no guess) or the guess: OpenCV starts there.
+    thread_local std::vector<float> error;
+    cv::calcOpticalFlowPyrLK(from.opencv_levels(), to.opencv_levels(), start_px, *end_px, *found,
+                             error, cv::Size(options.window_px, options.window_px), top_level,
+                             cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS,
+                                              options.max_iterations, options.epsilon_px),
+                             cv::OPTFLOW_USE_INITIAL_FLOW, options.min_eigen_threshold);
+    for (int i = 0; i < n; ++i) {
+      (*found)[i] = (*found)[i] && std::isfinite((*end_px)[i].x) && std::isfinite((*end_px)[i].y);
+      summary.found += (*found)[i];
+    }
+    return summary;
+  }
 
   // Per level: window side, padded width, kernels (level 0 window_px, the
   // coarser levels coarse_window_px).

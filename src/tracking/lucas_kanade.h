@@ -10,7 +10,23 @@
 
 namespace arreg {
 
+// Which implementation follows the points.
+enum class LucasKanadeBackend : uint8_t {
+  // Ours (this file): templates on the integer grid, a smaller window at the
+  // coarse levels, AVX kernels; 3.8-4.2 ms for the 500-feature step on the
+  // build machine (arreg bench tracking: lk_500_ms).
+  kArreg = 0,
+  // OpenCV's cv::calcOpticalFlowPyrLK on the same 8-bit pyramids, window,
+  // levels and termination (window_px at every level: coarse_window_px and
+  // the coarse-level tolerance are ours only); about three times the time
+  // (lk_500_opencv_ms 12-20 ms), positions within 0.02 px of ours (median).
+  kOpenCv = 1,
+};
+const char* LucasKanadeBackendName(LucasKanadeBackend backend);
+
 struct LucasKanadeOptions {
+  // Implementation. Default kArreg (the one that meets the 4 ms target).
+  LucasKanadeBackend backend = LucasKanadeBackend::kArreg;
   // Side of the square integration window at level 0, pixels (odd, 5..63). Default 21.
   int window_px = 21;
   // Window side at the coarser levels (odd, >= 5; at most window_px is used).
@@ -60,6 +76,9 @@ class LucasKanadePyramid {
   // `gray` CV_8UC1. Reuses the buffers of the previous build when sizes agree.
   void Build(const cv::Mat& gray, int pyramid_levels, int window_px);
   bool empty() const { return levels_.empty(); }
+  // cv::buildOpticalFlowPyramid's 8-bit levels (views padded by one window,
+  // reflected), as cv::calcOpticalFlowPyrLK takes them.
+  const std::vector<cv::Mat>& opencv_levels() const { return levels_; }
   int num_levels() const { return static_cast<int>(float_.size()); }
   // Level l (0 = full size) as CV_32F grey levels and its gradient (grey levels
   // per pixel), views into buffers padded by one window: every iteration reads

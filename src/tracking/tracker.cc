@@ -283,7 +283,9 @@ SurfOptions DetectorOptions(SurfOptions surf) {
 }  // namespace
 
 FeatureTracker::FeatureTracker(const FeatureTrackerOptions& options)
-    : options_(options), surf_((options.Check(), DetectorOptions(options.surf))) {}
+    : options_(options),
+      surf_((options.Check(), DetectorOptions(options.surf))),
+      round_surf_(DetectorOptions(options.surf)) {}
 
 int FeatureTracker::num_active() const {
   return static_cast<int>(std::count_if(current_.begin(), current_.end(), [](const auto& f) {
@@ -436,7 +438,116 @@ double Correlation(const std::vector<float>& a, const std::vector<float>& b) {
 
 }  // namespace
 
+// The crop reaches beyond the discs by the support of the largest filter of
+// every octave around a point and its 3x3 neighbours, plus two samples, and
+// starts on the sampling grid of the coarsest octave: its integral-image box
+// sums are then the whole image's, and so are responses, maxima and
+// interpolation. Nearer than that to a crop edge inside the image, the crop
+// truncates filters: points there are ignored (they are inside another crop or
+// not near a centre).
+bool DetectSurfNear(const SurfOptions& options, const cv::Mat& gray, const cv::Mat& roi_mask,
+                    const std::vector<cv::Point2f>& centres, float radius_px,
+                    std::vector<SurfKeypoint>* keypoints, double max_area_fraction) {
+  ARREG_CHECK_INPUT(gray.type() == CV_8UC1, "", "DetectSurfNear", "expected an 8-bit grey image");
+  ARREG_CHECK_INPUT(
+      roi_mask.empty() || (roi_mask.type() == CV_8UC1 && roi_mask.size() == gray.size()), "",
+      "DetectSurfNear", "ROI mask must be empty or CV_8UC1 of the image size");
+  keypoints->clear();
+  if (centres.empty()) return true;
+  // Orientations would see the crop's edges: the caller assigns them on the whole image.
+  SurfOptions crop_options = options;
+  crop_options.upright = true;
+  crop_options.max_keypoints = 0;
+  int reach = 0;
+  for (int o = 0; o < options.octaves; ++o) {
+    const int step = options.initial_sample_step << o;
+    const int largest_filter = 3 * ((2 << o) * (options.intervals + 2) + 1);
+    const int border = (largest_filter - 1) / 2;
+    reach = std::max(reach, ((border + step - 1) / step + 2) * step);
+  }
+  const int align = options.initial_sample_step << (options.octaves - 1);
+  const int extent = static_cast<int>(std::ceil(radius_px)) + reach + 1;
+  const cv::Rect image(0, 0, gray.cols, gray.rows);
+  std::vector<cv::Rect> crops;
+  for (const cv::Point2f& p : centres) {
+    const int x0 = std::max(0, static_cast<int>(std::floor(p.x)) - extent) / align * align;
+    const int y0 = std::max(0, static_cast<int>(std::floor(p.y)) - extent) / align * align;
+    const int x1 = std::min(gray.cols, static_cast<int>(std::ceil(p.x)) + extent + 1);
+    const int y1 = std::min(gray.rows, static_cast<int>(std::ceil(p.y)) + extent + 1);
+    if (x1 > x0 && y1 > y0) crops.emplace_back(x0, y0, x1 - x0, y1 - y0);
+  }
+  // Windows spread over most of the image (hundreds of waiting features) are
+  // told by their union on a grid of `align` cells, before any merging.
+  cv::Mat covered((gray.rows + align - 1) / align, (gray.cols + align - 1) / align, CV_8UC1,
+                  cv::Scalar(0));
+  for (const cv::Rect& c : crops)
+    covered(cv::Rect(c.x / align, c.y / align, (c.br().x - 1) / align - c.x / align + 1,
+                     (c.br().y - 1) / align - c.y / align + 1))
+        .setTo(1);
+  if (cv::countNonZero(covered) > max_area_fraction * covered.total()) return false;
+  // Neighbouring crops become their bounding box when that is no larger than
+  // the two (origins stay on the grid: the minimum of aligned values).
+  for (bool merged = true; merged;) {
+    merged = false;
+    std::vector<cv::Rect> kept;
+    for (const cv::Rect& c : crops) {
+      bool joined = false;
+      for (cv::Rect& k : kept) {
+        const cv::Rect both = k | c;
+        if (both.area() <= k.area() + c.area()) {
+          k = both;
+          joined = merged = true;
+          break;
+        }
+      }
+      if (!joined) kept.push_back(c);
+    }
+    crops.swap(kept);
+  }
+  long total = 0;
+  for (const cv::Rect& c : crops) total += c.area();
+  if (total > max_area_fraction * image.area()) return false;
+  if (total >= image.area()) crops.assign(1, image);
+
+  SurfDetector detector(crop_options);
+  std::vector<SurfKeypoint> found;
+  const float r2 = radius_px * radius_px;
+  for (const cv::Rect& c : crops) {
+    detector.SetImage(gray(c));
+    detector.Detect(roi_mask.empty() ? cv::Mat() : roi_mask(c), &found);
+    const float left = c.x > 0 ? c.x + reach : -1.f, top = c.y > 0 ? c.y + reach : -1.f;
+    const float right = c.br().x < gray.cols ? c.br().x - 1 - reach : static_cast<float>(gray.cols);
+    const float bottom =
+        c.br().y < gray.rows ? c.br().y - 1 - reach : static_cast<float>(gray.rows);
+    for (SurfKeypoint kp : found) {
+      kp.position_px += cv::Point2f(static_cast<float>(c.x), static_cast<float>(c.y));
+      const cv::Point2f q = kp.position_px;
+      if (q.x < left || q.y < top || q.x > right || q.y > bottom) continue;
+      bool close = false;
+      for (const cv::Point2f& p : centres)
+        if ((q - p).dot(q - p) <= r2) {
+          close = true;
+          break;
+        }
+      if (!close) continue;
+      bool repeated = false;
+      for (const SurfKeypoint& other : *keypoints)
+        if (other.octave == kp.octave && std::abs(other.scale_px - kp.scale_px) < 1e-3f &&
+            (other.position_px - q).dot(other.position_px - q) < 1e-4f) {
+          repeated = true;
+          break;
+        }
+      if (!repeated) keypoints->push_back(kp);
+    }
+  }
+  std::stable_sort(
+      keypoints->begin(), keypoints->end(),
+      [](const SurfKeypoint& a, const SurfKeypoint& b) { return a.response > b.response; });
+  return true;
+}
+
 void FeatureTracker::RememberLost() {
+  std::vector<int> lost_ids;
   for (int i = 0; i < static_cast<int>(current_.size()); ++i) {
     const TrackStatus status = current_[i].status;
     // Outliers moved implausibly: they are dropped for good (thesis 7.4.1).
@@ -447,7 +558,9 @@ void FeatureTracker::RememberLost() {
     SamplePatch(previous_pyramid_.float_image(0), lost.position_px, options_.lk.window_px,
                 &lost.patch);
     lost_.push_back(std::move(lost));
+    lost_ids.push_back(current_[i].id);
   }
+  ReferenceDescriptorsOfLost(lost_ids);
 }
 
 void FeatureTracker::SyncReferenceDescriptors() {
@@ -457,21 +570,30 @@ void FeatureTracker::SyncReferenceDescriptors() {
     reference_descriptors_.push_back(store_.descriptors().rowRange(known, store_.num_features()));
 }
 
-void FeatureTracker::RefreshDescriptors() {
+void FeatureTracker::ReferenceDescriptorsOfLost(const std::vector<int>& lost_ids) {
+  SyncReferenceDescriptors();
+  if (round_frame_ < 0) return;
   std::vector<SurfKeypoint> keypoints;
   std::vector<int> ids;
-  for (const FeatureState& f : current_) {
-    if (f.status != TrackStatus::kTracked) continue;
-    SurfKeypoint kp = store_.keypoint(f.id);
-    kp.position_px = f.position_px;
+  for (int id : lost_ids) {
+    // Its last observation in the round frame (a feature lost and found again
+    // there has two): tracked there means it was refreshed there.
+    const std::vector<TrackObservation>& h = store_.history(id);
+    const auto after =
+        std::upper_bound(h.begin(), h.end(), round_frame_,
+                         [](int frame, const TrackObservation& o) { return frame < o.frame; });
+    if (after == h.begin()) continue;
+    const TrackObservation& at = *(after - 1);
+    if (at.frame != round_frame_ || at.status != TrackStatus::kTracked) continue;
+    SurfKeypoint kp = store_.keypoint(id);
+    kp.position_px = at.position_px;
     keypoints.push_back(kp);
-    ids.push_back(f.id);
+    ids.push_back(id);
   }
   if (keypoints.empty()) return;
-  if (!options_.surf.upright) surf_.ComputeOrientations(&keypoints);
+  if (!options_.surf.upright) round_surf_.ComputeOrientations(&keypoints);
   cv::Mat descriptors;
-  surf_.Describe(keypoints, &descriptors);
-  SyncReferenceDescriptors();
+  round_surf_.Describe(keypoints, &descriptors);
   for (size_t k = 0; k < ids.size(); ++k)
     descriptors.row(static_cast<int>(k)).copyTo(reference_descriptors_.row(ids[k]));
 }
@@ -536,10 +658,19 @@ int FeatureTracker::Reidentify(const cv::Mat& roi_mask) {
   }
   if (waiting.empty()) return 0;
 
-  // Fresh SURF points near a prediction and away from the followed features.
-  std::vector<SurfKeypoint> detected, near;
-  surf_.Detect(roi_mask, &detected);
+  // Fresh SURF points near a prediction and away from the followed features;
+  // SURF runs only around the predictions (DetectSurfNear), not on the whole frame.
   const float gate = static_cast<float>(o.gate_px), wide = 2 * gate;
+  std::vector<cv::Point2f> centres;
+  for (int l : waiting) centres.push_back(predicted[l]);
+  std::vector<SurfKeypoint> detected, near;
+  // Windows that would cover more than kMaxWindowArea of the frame (as on the
+  // real clip, where 100-300 features wait all over it) cost more than the
+  // whole frame with the integral image round_surf_ already has.
+  constexpr double kMaxWindowArea = 0.6;
+  if (!o.search_near_predictions || !DetectSurfNear(round_surf_.options(), gray_, roi_mask, centres,
+                                                    wide, &detected, kMaxWindowArea))
+    round_surf_.Detect(roi_mask, &detected);
   const float min_distance = static_cast<float>(options_.min_distance_px);
   for (const SurfKeypoint& kp : detected) {
     bool close = false;
@@ -562,9 +693,37 @@ int FeatureTracker::Reidentify(const cv::Mat& roi_mask) {
     if (!taken) near.push_back(kp);
   }
   if (near.empty()) return 0;
-  if (!options_.surf.upright) surf_.ComputeOrientations(&near);
+
+  // Only features with an eligible candidate (inside the gate, same Laplacian
+  // sign, scale within the factor) can match; the points within twice the gate
+  // of those are all that need an orientation and a descriptor (the others
+  // could neither match nor take part in a ratio test).
+  const float max_log_scale = static_cast<float>(std::log(o.max_scale_factor));
+  auto eligible = [&](const SurfKeypoint& kp, int l) {
+    const cv::Point2f d = kp.position_px - predicted[l];
+    const int id = lost_[l].id;
+    return d.dot(d) <= gate * gate && kp.laplacian_sign == store_.keypoint(id).laplacian_sign &&
+           std::abs(std::log(kp.scale_px / store_.keypoint(id).scale_px)) <= max_log_scale;
+  };
+  std::vector<int> searched;
+  for (int l : waiting)
+    if (std::any_of(near.begin(), near.end(),
+                    [&](const SurfKeypoint& kp) { return eligible(kp, l); }))
+      searched.push_back(l);
+  if (searched.empty()) return 0;
+  waiting.swap(searched);
+  near.erase(std::remove_if(near.begin(), near.end(),
+                            [&](const SurfKeypoint& kp) {
+                              for (int l : waiting) {
+                                const cv::Point2f d = kp.position_px - predicted[l];
+                                if (d.dot(d) <= wide * wide) return false;
+                              }
+                              return true;
+                            }),
+             near.end());
+  if (!options_.surf.upright) round_surf_.ComputeOrientations(&near);
   cv::Mat descriptors;
-  surf_.Describe(near, &descriptors);
+  round_surf_.Describe(near, &descriptors);
 
   // Best candidate inside the gate (descriptor distance, scale), checked by the
   // ratio test against every point within twice the gate.
@@ -573,13 +732,10 @@ int FeatureTracker::Reidentify(const cv::Mat& roi_mask) {
     int lost_index, keypoint;
   };
   std::vector<Match> matches;
-  const float max_log_scale = static_cast<float>(std::log(o.max_scale_factor));
   std::vector<float> patch;
   for (int l : waiting) {
     const int id = lost_[l].id;
     const cv::Mat reference = reference_descriptors_.row(id);
-    const float reference_scale = store_.keypoint(id).scale_px;
-    const int8_t reference_sign = store_.keypoint(id).laplacian_sign;
     float best = std::numeric_limits<float>::max(), second = best;
     int best_k = -1;
     for (int k = 0; k < static_cast<int>(near.size()); ++k) {
@@ -587,9 +743,7 @@ int FeatureTracker::Reidentify(const cv::Mat& roi_mask) {
       const float d2 = d.dot(d);
       if (d2 > wide * wide) continue;
       const float distance = static_cast<float>(cv::norm(reference, descriptors.row(k)));
-      const bool eligible = d2 <= gate * gate && near[k].laplacian_sign == reference_sign &&
-                            std::abs(std::log(near[k].scale_px / reference_scale)) <= max_log_scale;
-      if (eligible && distance < best) {
+      if (eligible(near[k], l) && distance < best) {
         second = std::min(second, best);
         best = distance;
         best_k = k;
@@ -643,6 +797,7 @@ TrackFrameSummary FeatureTracker::Initialize(const cv::Mat& image, const cv::Mat
   previous_position_.clear();
   lost_.clear();
   reference_descriptors_.release();
+  round_frame_ = -1;
   PrepareFrame(image, roi_mask);
   TrackFrameSummary summary;
   summary.frame = 0;
@@ -737,9 +892,9 @@ TrackFrameSummary FeatureTracker::Track(const cv::Mat& image, const cv::Mat& roi
   if (options_.reidentify.enabled) {
     RememberLost();
     if (frame_ % options_.reidentify.every_frames == 0) {
-      surf_.SetImage(gray_);
+      round_surf_.SetImage(gray_);
+      round_frame_ = frame_;
       summary.num_reidentified = Reidentify(roi_mask);
-      RefreshDescriptors();
     }
   }
   if (options_.redetect_every_frames > 0 && frame_ % options_.redetect_every_frames == 0)

@@ -97,6 +97,10 @@ struct ReidentifyOptions {
   // (0.1); on the real clip the descriptor matches correlate with median 0.72,
   // as tissue deforms while hidden. Default 0.6.
   double min_patch_correlation = 0.6;
+  // Run SURF only in windows around the predictions (DetectSurfNear: the same
+  // points) when they cover less than 60 % of the frame, instead of on the
+  // whole frame; false is the reference the windows reproduce. Default true.
+  bool search_near_predictions = true;
 
   void Check() const;  // throws arreg::Error naming the bad field
 };
@@ -204,8 +208,10 @@ class FeatureTracker {
   // Looks for the remembered features among this frame's SURF points.
   int Reidentify(const cv::Mat& roi_mask);
 
-  // Recomputes the reference descriptors of the tracked features (surf_ holds this frame).
-  void RefreshDescriptors();
+  // Sets the reference descriptors of the features lost in this frame: as of
+  // the last re-identification round where they were tracked (round_surf_
+  // still holds that frame), else their descriptor at detection.
+  void ReferenceDescriptorsOfLost(const std::vector<int>& lost_ids);
   // Gives features detected since the last call their descriptor at detection as reference.
   void SyncReferenceDescriptors();
 
@@ -220,6 +226,14 @@ class FeatureTracker {
 
   FeatureTrackerOptions options_;
   SurfDetector surf_;
+  // The frame of the last re-identification round (round_frame_, -1 before
+  // the first), kept until the next: its SURF points are searched, and the
+  // reference descriptor of a feature lost later is computed from it, at the
+  // feature's position then. Computing it at the loss, for the few features
+  // lost, gives the descriptor a refresh of every tracked feature at every
+  // round would have given.
+  SurfDetector round_surf_;
+  int round_frame_ = -1;
   int frame_ = -1;
   cv::Mat gray_, bgr_;  // current frame (bgr_ empty for grey input)
   LucasKanadePyramid pyramid_, previous_pyramid_;
@@ -227,7 +241,7 @@ class FeatureTracker {
   std::vector<cv::Point2f> previous_position_;  // per current_ entry: position in the frame before
   std::vector<LostFeature> lost_;
   // (#features x 64) CV_32F, row = id: the descriptor re-identification compares
-  // with, as of the last refresh while the feature was tracked.
+  // with (set for lost features: ReferenceDescriptorsOfLost).
   cv::Mat reference_descriptors_;
   TrackStore store_;
   // Scratch kept between frames to avoid reallocation.
@@ -245,6 +259,20 @@ class FeatureTracker {
 std::vector<bool> SpatioTemporalOutliers(const std::vector<cv::Point2f>& positions_px,
                                          const std::vector<cv::Point2f>& displacements_px,
                                          const OutlierFilterOptions& options);
+
+// The SURF points of `gray` (CV_8UC1; inside `roi_mask`, CV_8UC1 of its size,
+// or everywhere when empty) within `radius_px` of one of `centres`, strongest
+// first: the points that detecting the whole image with `options` and keeping
+// those near a centre gives (positions equal up to float rounding), but
+// computed on crops around the centres only (merged where they overlap, the
+// whole image when they would cover more). Orientations are not assigned
+// (angle 0: they would see the crops' edges) and options.max_keypoints is ignored.
+// Returns false, detecting nothing, when the crops would sum to more than
+// `max_area_fraction` of the image (the caller may then rather detect on the
+// whole image it has at hand).
+bool DetectSurfNear(const SurfOptions& options, const cv::Mat& gray, const cv::Mat& roi_mask,
+                    const std::vector<cv::Point2f>& centres, float radius_px,
+                    std::vector<SurfKeypoint>* keypoints, double max_area_fraction = 1.0);
 
 // Highlight mask (CV_8UC1, 255 on highlight pixels) of a BGR or grey image.
 cv::Mat SpecularMask(const cv::Mat& image, const SpecularOptions& options);

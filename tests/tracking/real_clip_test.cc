@@ -42,9 +42,17 @@ TEST(RealClip, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
   FeatureTracker tracker;
   const TrackFrameSummary first = tracker.Initialize(frame);
   EXPECT_GE(first.num_active, 200);
+  // Re-identification's SURF only around the predictions (the default) finds
+  // what SURF on the whole frame finds: the same features come back, at the
+  // same places.
+  FeatureTrackerOptions whole_frame_options;
+  whole_frame_options.reidentify.search_near_predictions = false;
+  FeatureTracker whole_frame(whole_frame_options);
+  whole_frame.Initialize(frame);
   int frames = 1;
   while (reader.Read(&frame)) {
     tracker.Track(frame);
+    whole_frame.Track(frame);
     cv::cvtColor(frame, grey.emplace_back(), cv::COLOR_BGR2GRAY);
     ++frames;
   }
@@ -52,6 +60,20 @@ TEST(RealClip, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
   EXPECT_FALSE(reader.truncated());
 
   const TrackStore& store = tracker.store();
+  ASSERT_EQ(store.num_features(), whole_frame.store().num_features());
+  int reidentifications = 0;
+  for (int id = 0; id < store.num_features(); ++id) {
+    const std::vector<TrackObservation>&a = store.history(id), &e = whole_frame.store().history(id);
+    ASSERT_EQ(a.size(), e.size()) << "feature " << id;
+    for (size_t k = 0; k < e.size(); ++k) {
+      EXPECT_EQ(a[k].status, e[k].status) << "feature " << id << " frame " << e[k].frame;
+      EXPECT_EQ(a[k].reidentified, e[k].reidentified)
+          << "feature " << id << " frame " << e[k].frame;
+      EXPECT_LT(cv::norm(a[k].position_px - e[k].position_px), 1e-3);
+      reidentifications += e[k].reidentified;
+    }
+  }
+  EXPECT_GT(reidentifications, 5);
   int on_grasper = 0, grasper_dropped = 0, still_tracked = 0;
   for (int id = 0; id < store.num_features(); ++id) {
     if (store.first_frame(id) != 0) continue;

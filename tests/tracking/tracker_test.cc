@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <set>
+#include <string>
 
 #include <opencv2/imgproc.hpp>
 
@@ -27,15 +28,24 @@ cv::Point2f Apply(const cv::Matx23d& m, cv::Point2f p) {
                      static_cast<float>(m(1, 0) * p.x + m(1, 1) * p.y + m(1, 2)));
 }
 
-TEST(FeatureTracker, SubPixelWarpIsRecoveredToATenthOfAPixel) {
-  const cv::Mat a = Texture(400, 480, 11);
-  // Small rotation + scale + sub-pixel shift (an elastic scene moves little per frame).
+// Small rotation + scale + sub-pixel shift (an elastic scene moves little per frame).
+cv::Matx23d SmallWarp() {
   cv::Matx23d m = cv::getRotationMatrix2D(cv::Point2f(240, 200), 1.5, 1.01);
   m(0, 2) += 1.37;
   m(1, 2) -= 0.62;
+  return m;
+}
+
+class SubPixelWarp : public ::testing::TestWithParam<LucasKanadeBackend> {};
+
+TEST_P(SubPixelWarp, IsRecoveredToATenthOfAPixel) {
+  const cv::Mat a = Texture(400, 480, 11);
+  const cv::Matx23d m = SmallWarp();
   cv::Mat b;
   cv::warpAffine(a, b, m, a.size(), cv::INTER_CUBIC, cv::BORDER_REFLECT);
-  FeatureTracker tracker;
+  FeatureTrackerOptions options;
+  options.lk.backend = GetParam();
+  FeatureTracker tracker(options);
   const auto first = tracker.Initialize(a);
   ASSERT_GT(first.num_active, 100);
   const auto second = tracker.Track(b);
@@ -50,6 +60,38 @@ TEST(FeatureTracker, SubPixelWarpIsRecoveredToATenthOfAPixel) {
   EXPECT_LT(errors[errors.size() / 2], 0.1);
   EXPECT_EQ(second.count[static_cast<int>(TrackStatus::kOutlierSpatioTemporal)], 0)
       << "a smooth motion has no outliers";
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends, SubPixelWarp,
+                         ::testing::Values(LucasKanadeBackend::kArreg, LucasKanadeBackend::kOpenCv),
+                         [](const ::testing::TestParamInfo<LucasKanadeBackend>& info) {
+                           return std::string(LucasKanadeBackendName(info.param));
+                         });
+
+TEST(LucasKanade, OurBackendAgreesWithOpenCvOnAWarp) {
+  const cv::Mat a = Texture(400, 480, 11);
+  cv::Mat b;
+  cv::warpAffine(a, b, SmallWarp(), a.size(), cv::INTER_CUBIC, cv::BORDER_REFLECT);
+  LucasKanadeOptions options;
+  LucasKanadePyramid pa, pb;
+  pa.Build(a, options.pyramid_levels, options.window_px);
+  pb.Build(b, options.pyramid_levels, options.window_px);
+  std::vector<cv::Point2f> start;
+  for (int y = 30; y < 370; y += 17)
+    for (int x = 30; x < 450; x += 17) start.emplace_back(x + 0.3f, y + 0.7f);
+  std::vector<cv::Point2f> ours, theirs;
+  std::vector<uint8_t> found_ours, found_theirs;
+  TrackLucasKanade(pa, pb, start, options, false, &ours, &found_ours);
+  options.backend = LucasKanadeBackend::kOpenCv;
+  TrackLucasKanade(pa, pb, start, options, false, &theirs, &found_theirs);
+  std::vector<double> differences;
+  for (size_t i = 0; i < start.size(); ++i)
+    if (found_ours[i] && found_theirs[i]) differences.push_back(cv::norm(ours[i] - theirs[i]));
+  ASSERT_GT(differences.size(), 0.95 * start.size()) << "both follow a textured warp";
+  std::nth_element(differences.begin(), differences.begin() + differences.size() / 2,
+                   differences.end());
+  RecordProperty("median_difference_px", std::to_string(differences[differences.size() / 2]));
+  EXPECT_LT(differences[differences.size() / 2], 0.05);
 }
 
 TEST(FeatureTracker, RoiBorderAndIdsBehave) {
@@ -216,6 +258,83 @@ TEST(FeatureTracker, OccludedPatchIsReidentifiedWithItsIdWhenItReappears) {
   EXPECT_GE(still, found - 1);
 }
 
+// The histories of a tracker run on `video` for frames 0..frames-1.
+std::vector<std::vector<TrackObservation>> Histories(const OccludedPatch& video, int frames,
+                                                     const FeatureTrackerOptions& options) {
+  FeatureTracker tracker(options);
+  tracker.Initialize(video.Frame(0));
+  for (int t = 1; t < frames; ++t) tracker.Track(video.Frame(t));
+  std::vector<std::vector<TrackObservation>> histories;
+  for (int id = 0; id < tracker.store().num_features(); ++id)
+    histories.push_back(tracker.store().history(id));
+  return histories;
+}
+
+TEST(FeatureTracker, SearchingNearThePredictionsFindsWhatTheWholeFrameFinds) {
+  for (const bool same : {true, false}) {
+    const OccludedPatch video(same);
+    FeatureTrackerOptions whole;
+    whole.reidentify.search_near_predictions = false;
+    const auto expected = Histories(video, OccludedPatch::kFrames, whole);
+    const auto actual = Histories(video, OccludedPatch::kFrames, FeatureTrackerOptions());
+    ASSERT_EQ(actual.size(), expected.size());
+    int reidentified = 0;
+    for (size_t id = 0; id < expected.size(); ++id) {
+      ASSERT_EQ(actual[id].size(), expected[id].size()) << "feature " << id;
+      for (size_t k = 0; k < expected[id].size(); ++k) {
+        const TrackObservation &a = actual[id][k], &e = expected[id][k];
+        EXPECT_EQ(a.frame, e.frame);
+        EXPECT_EQ(a.status, e.status) << "feature " << id << " frame " << e.frame;
+        EXPECT_EQ(a.reidentified, e.reidentified) << "feature " << id << " frame " << e.frame;
+        EXPECT_LT(cv::norm(a.position_px - e.position_px), 1e-3);
+        reidentified += e.reidentified;
+      }
+    }
+    if (same) {
+      EXPECT_GT(reidentified, 5) << "the scene exercises re-identification";
+    }
+  }
+}
+
+TEST(DetectSurfNear, FindsTheWholeImagesPointsNearTheCentres) {
+  const cv::Mat image = Texture(512, 640, 31);
+  SurfOptions options = FeatureTrackerOptions().surf;
+  options.upright = true;
+  cv::Mat roi(image.size(), CV_8UC1, cv::Scalar(0));
+  cv::circle(roi, cv::Point(330, 250), 230, cv::Scalar(255), -1);
+  // Near the corners and edges, one alone in the middle, two that overlap.
+  const std::vector<cv::Point2f> centres = {{6, 5},     {634, 507}, {320, 3},  {320, 256},
+                                            {150, 400}, {170, 395}, {500, 120}};
+  const float radius = 24;
+  for (const cv::Mat& mask : {cv::Mat(), roi}) {
+    SurfDetector whole(options);
+    whole.SetImage(image);
+    std::vector<SurfKeypoint> all, expected, actual;
+    whole.Detect(mask, &all);
+    for (const SurfKeypoint& kp : all)
+      for (const cv::Point2f& c : centres)
+        if (cv::norm(kp.position_px - c) <= radius) {
+          expected.push_back(kp);
+          break;
+        }
+    ASSERT_TRUE(DetectSurfNear(options, image, mask, centres, radius, &actual));
+    ASSERT_GT(expected.size(), 20u);
+    ASSERT_EQ(actual.size(), expected.size());
+    for (size_t i = 0; i < expected.size(); ++i) {
+      EXPECT_LT(cv::norm(actual[i].position_px - expected[i].position_px), 1e-3) << i;
+      EXPECT_EQ(actual[i].scale_px, expected[i].scale_px);
+      EXPECT_EQ(actual[i].response, expected[i].response);
+      EXPECT_EQ(actual[i].laplacian_sign, expected[i].laplacian_sign);
+      EXPECT_EQ(actual[i].octave, expected[i].octave);
+    }
+  }
+  // Seven windows of ~300 x 300 px cover more than a tenth of the image: the
+  // caller is told to detect on the whole image instead.
+  std::vector<SurfKeypoint> none;
+  EXPECT_FALSE(DetectSurfNear(options, image, cv::Mat(), centres, radius, &none, 0.1));
+  EXPECT_TRUE(none.empty());
+}
+
 TEST(FeatureTracker, ADifferentPatchBehindTheOccluderIsNotReidentified) {
   const OccludedPatch video(/*same=*/false);
   FeatureTracker tracker;
@@ -350,6 +469,9 @@ TEST(TrackStore, CsvHoldsEveryObservation) {
 TEST(FeatureTracker, RejectsBadInput) {
   FeatureTrackerOptions options;
   options.lk.window_px = 4;
+  EXPECT_THROW(FeatureTracker{options}, Error);
+  options = FeatureTrackerOptions();
+  options.lk.backend = static_cast<LucasKanadeBackend>(7);
   EXPECT_THROW(FeatureTracker{options}, Error);
   FeatureTracker tracker;
   EXPECT_THROW(tracker.Track(cv::Mat(10, 10, CV_8UC1)), Error);
