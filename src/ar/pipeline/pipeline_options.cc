@@ -83,6 +83,9 @@ void ReadTracking(const Scene& scene, FeatureTrackerOptions* o) {
   r.Optional("window_px", &o->lk.window_px);
   r.Optional("pyramid_levels", &o->lk.pyramid_levels);
   r.Optional("forward_backward_max_px", &o->lk.forward_backward_max_px);
+  std::string backend = LucasKanadeBackendName(o->lk.backend);
+  r.OptionalChoice("lk_backend", {"arreg", "opencv"}, &backend);
+  o->lk.backend = backend == "opencv" ? LucasKanadeBackend::kOpenCv : LucasKanadeBackend::kArreg;
   r.Optional("outlier_filter", &o->outliers.enabled);
   r.Optional("outlier_ratio", &o->outliers.ratio);
   r.Optional("outlier_slack_px", &o->outliers.slack_px);
@@ -194,6 +197,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                    {"window_px", o.tracking.lk.window_px},
                    {"pyramid_levels", o.tracking.lk.pyramid_levels},
                    {"forward_backward_max_px", o.tracking.lk.forward_backward_max_px},
+                   {"lk_backend", LucasKanadeBackendName(o.tracking.lk.backend)},
                    {"outlier_filter", o.tracking.outliers.enabled},
                    {"outlier_ratio", o.tracking.outliers.ratio},
                    {"outlier_slack_px", o.tracking.outliers.slack_px},
