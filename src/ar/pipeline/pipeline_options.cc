@@ -126,8 +126,7 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("outlier_factor", &o->detector.outlier_factor);
   r.Optional("min_outliers", &o->detector.min_outliers);
   r.Optional("cut_point_radius_mm", &o->detector.cut_point_radius_mm);
-  std::string measure =
-      o->detector.measure == cutting::CutMeasure::kImageOnly ? "image" : "model";
+  std::string measure = o->detector.measure == cutting::CutMeasure::kImageOnly ? "image" : "model";
   r.OptionalChoice("measure", {"image", "model"}, &measure);
   o->detector.measure =
       measure == "image" ? cutting::CutMeasure::kImageOnly : cutting::CutMeasure::kModelRegularised;
@@ -216,22 +215,22 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                     {"gravity_mm_per_s2", vec(o.mechanics.gravity_mm_per_s2)},
                     {"fixed_vertices", o.mechanics.fixed_vertices},
                     {"linear_solver", o.mechanics.linear_solver}};
-  j["cutting"] = {{"enabled", o.cutting.enabled},
-                  {"neighbour_radius_mm", o.cutting.detector.neighbour_radius_mm},
-                  {"outlier_factor", o.cutting.detector.outlier_factor},
-                  {"min_outliers", o.cutting.detector.min_outliers},
-                  {"cut_point_radius_mm", o.cutting.detector.cut_point_radius_mm},
-                  {"measure", o.cutting.detector.measure == cutting::CutMeasure::kImageOnly
-                                  ? "image"
-                                  : "model"},
-                  {"require_opening", o.cutting.detector.require_opening},
-                  {"cluster_outliers", o.cutting.detector.cluster_outliers},
-                  {"min_outlier_measure_mm", o.cutting.detector.min_outlier_measure_mm},
-                  {"spring_margin_mm", o.cutting.spring_margin_mm},
-                  {"extrusion_margin_mm", o.cutting.extrusion_margin_mm},
-                  {"method", o.cutting.method},
-                  {"snap_epsilon", o.cutting.snap_epsilon},
-                  {"on_surface_tolerance", o.cutting.on_surface_tolerance}};
+  j["cutting"] = {
+      {"enabled", o.cutting.enabled},
+      {"neighbour_radius_mm", o.cutting.detector.neighbour_radius_mm},
+      {"outlier_factor", o.cutting.detector.outlier_factor},
+      {"min_outliers", o.cutting.detector.min_outliers},
+      {"cut_point_radius_mm", o.cutting.detector.cut_point_radius_mm},
+      {"measure",
+       o.cutting.detector.measure == cutting::CutMeasure::kImageOnly ? "image" : "model"},
+      {"require_opening", o.cutting.detector.require_opening},
+      {"cluster_outliers", o.cutting.detector.cluster_outliers},
+      {"min_outlier_measure_mm", o.cutting.detector.min_outlier_measure_mm},
+      {"spring_margin_mm", o.cutting.spring_margin_mm},
+      {"extrusion_margin_mm", o.cutting.extrusion_margin_mm},
+      {"method", o.cutting.method},
+      {"snap_epsilon", o.cutting.snap_epsilon},
+      {"on_surface_tolerance", o.cutting.on_surface_tolerance}};
   j["render"] = {{"enabled", o.render.enabled},
                  {"supersampling", o.render.supersampling},
                  {"organ_opacity", o.render.organ_opacity},

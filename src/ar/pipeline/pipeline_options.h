@@ -67,7 +67,7 @@ struct CuttingStageOptions {
 
 // Overlay rendering (z-buffered, anti-aliased) drawn over the decoded frame.
 struct RenderStageOptions {
-  bool enabled = true;          // render the overlay at all (bench without); default true
+  bool enabled = true;  // render the overlay at all (bench without); default true
   // Anti-aliasing: 1 (default) one sample per pixel with analytic coverage of silhouette edges
   // (render::CoverageLayer, fast); 2..8 the reference rasterizer at that many samples per
   // pixel and axis.

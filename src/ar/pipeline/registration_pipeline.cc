@@ -261,7 +261,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   // Cut detection over the attached features (detector ids = feature rows).
   std::optional<cutting::CutDetector> detector;
   std::optional<CutHandler> cut_handler;
-  const CutTargets cut_targets{&state,         &springs,          &features,
+  const CutTargets cut_targets{&state,         &springs,           &features,
                                &attach_points, &feature_embedding, &internal,
                                &internal_rest, &internal_embedding};
   cutting::DetectionResult detection;
