@@ -90,12 +90,12 @@ TEST(RealClip, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
               first.num_active, still_tracked, 100.0 * still_tracked / first.num_active, on_grasper,
               grasper_dropped);
   EXPECT_GE(on_grasper, 10) << "the grasper is textured; SURF finds points on it";
-  // The issue asks for >= 50 % survivors. NOT MET (10.5 %, see docs/tracking.md,
+  // The issue asks for >= 50 % survivors. NOT MET (15.1 %, see docs/tracking.md,
   // "Real clip"): the grasper sweeps over the left tissue and stretches and covers
   // the upper tissue; lost features come back only by re-identification, which
   // the deformation during the occlusion limits. Guarded here is what holds, so
   // that a regression shows:
-  EXPECT_GE(still_tracked, 0.09 * first.num_active);
+  EXPECT_GE(still_tracked, 0.14 * first.num_active);
 
   // The survivors have not drifted: followed back from the last frame (LK
   // frame by frame, independent of the tracker's own chain) to where they were

@@ -258,6 +258,52 @@ TEST(FeatureTracker, OccludedPatchIsReidentifiedWithItsIdWhenItReappears) {
   EXPECT_GE(still, found - 1);
 }
 
+TEST(FeatureTracker, AnOccludedPatchIsReacquiredByLucasKanadeWithoutSurf) {
+  // A sub-pixel pan (1.35, 0.45) px per frame (half-pixel at the round of
+  // frame 10) under an occluder in frames 1..6, so that no SURF descriptor
+  // comes back exactly and a tiny descriptor threshold leaves re-acquisition
+  // by LK as the only way back.
+  const cv::Mat scene = Texture(300, 300, 21);
+  const cv::Rect square(90, 90, 120, 120);
+  const cv::Point2f pan(1.35f, 0.45f);
+  auto frame = [&](int t) {
+    cv::Mat image;
+    cv::warpAffine(scene, image, cv::Matx23d(1, 0, -pan.x * t, 0, 1, -pan.y * t), scene.size(),
+                   cv::INTER_CUBIC, cv::BORDER_REFLECT);
+    if (t >= 1 && t <= 6) image(square).setTo(110);
+    return image;
+  };
+  for (const bool reacquire : {true, false}) {
+    FeatureTrackerOptions options;
+    options.reidentify.max_descriptor_distance = 1e-6;
+    options.reidentify.reacquire_by_lk = reacquire;
+    FeatureTracker tracker(options);
+    tracker.Initialize(frame(0));
+    std::vector<int> hidden;
+    for (const FeatureState& f : tracker.current())
+      if (f.position_px.x > square.x + 25 && f.position_px.x < square.br().x - 25 &&
+          f.position_px.y > square.y + 25 && f.position_px.y < square.br().y - 25)
+        hidden.push_back(f.id);
+    ASSERT_GE(hidden.size(), 5u);
+    for (int t = 1; t <= 10; ++t) tracker.Track(frame(t));
+    int found = 0;
+    for (int id : hidden) {
+      const std::vector<TrackObservation>& h = tracker.store().history(id);
+      if (h.back().status != TrackStatus::kTracked || h.back().frame != 10) continue;
+      ++found;
+      EXPECT_TRUE(h.back().reidentified);
+      // Where the pan has carried it.
+      EXPECT_LT(cv::norm(h.back().position_px - (h.front().position_px - 10 * pan)), 0.5)
+          << "feature " << id;
+    }
+    if (reacquire) {
+      EXPECT_GE(found, 0.8 * hidden.size()) << found << " of " << hidden.size();
+    } else {
+      EXPECT_EQ(found, 0);
+    }
+  }
+}
+
 // The histories of a tracker run on `video` for frames 0..frames-1.
 std::vector<std::vector<TrackObservation>> Histories(const OccludedPatch& video, int frames,
                                                      const FeatureTrackerOptions& options) {
