@@ -198,8 +198,12 @@ TEST(TetCutter, ProgressivePartialCutsSeparateAtTheEnd) {
         const MeshInvariants inv = CheckMeshInvariants(rest);
         ASSERT_TRUE(inv.ok()) << "step " << step << ": " << inv.ToString();
         ASSERT_NEAR(inv.total_volume, v0, 1e-9 * v0);
-        if (step < 7) EXPECT_EQ(NumPieces(rest), 1) << "step " << step;
-        if (step >= 3 && step < 7) EXPECT_GT(duplicated, 0) << "step " << step;
+        if (step < 7) {
+          EXPECT_EQ(NumPieces(rest), 1) << "step " << step;
+        }
+        if (step >= 3 && step < 7) {
+          EXPECT_GT(duplicated, 0) << "step " << step;
+        }
       }
       EXPECT_EQ(NumPieces(m.RestMesh()), 2) << "eps " << eps;
     }
