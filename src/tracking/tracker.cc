@@ -782,12 +782,20 @@ int FeatureTracker::Reidentify(const cv::Mat& roi_mask) {
     used_keypoint[m.keypoint] = 1;
     found[m.lost_index] = 1;
     placed.push_back(p);
-    const int id = lost_[m.lost_index].id;
-    current_.push_back({id, p, cv::Point2f(0, 0), TrackStatus::kTracked});
-    previous_position_.push_back(p);
-    store_.Record(id, {frame_, p, TrackStatus::kTracked, true});
+    Restore(lost_[m.lost_index].id, p);
     ++count;
   }
+  ForgetFound(found);
+  return count;
+}
+
+void FeatureTracker::Restore(int id, const cv::Point2f& position_px) {
+  current_.push_back({id, position_px, cv::Point2f(0, 0), TrackStatus::kTracked});
+  previous_position_.push_back(position_px);
+  store_.Record(id, {frame_, position_px, TrackStatus::kTracked, true});
+}
+
+void FeatureTracker::ForgetFound(const std::vector<uint8_t>& found) {
   int kept = 0;
   for (int l = 0; l < static_cast<int>(lost_.size()); ++l) {
     if (found[l]) continue;
@@ -795,7 +803,6 @@ int FeatureTracker::Reidentify(const cv::Mat& roi_mask) {
     ++kept;
   }
   lost_.resize(kept);
-  return count;
 }
 
 namespace {
@@ -923,19 +930,11 @@ int FeatureTracker::Reacquire(const cv::Mat& roi_mask) {
           (g.position_px - p).dot(g.position_px - p) < min_distance * min_distance)
         crowded = true;
     if (crowded) continue;
-    current_.push_back({id, p, cv::Point2f(0, 0), TrackStatus::kTracked});
-    previous_position_.push_back(p);
-    store_.Record(id, {frame_, p, TrackStatus::kTracked, true});
+    Restore(id, p);
     found[l] = 1;
     ++count;
   }
-  int kept = 0;
-  for (int l = 0; l < static_cast<int>(lost_.size()); ++l) {
-    if (found[l]) continue;
-    if (kept != l) lost_[kept] = std::move(lost_[l]);  // never self-move: it empties the patch
-    ++kept;
-  }
-  lost_.resize(kept);
+  ForgetFound(found);
   return count;
 }
 

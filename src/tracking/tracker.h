@@ -241,6 +241,11 @@ class FeatureTracker {
   static constexpr int kReacquireMarginPx = 10;
   // Re-acquisition by LK of the features Reidentify predicted but did not find.
   int Reacquire(const cv::Mat& roi_mask);
+  // A lost feature found again at `position_px` continues its id as tracked in
+  // the current frame (its observation marked re-identified).
+  void Restore(int id, const cv::Point2f& position_px);
+  // Removes the lost features with found[l] != 0, keeping the others' order.
+  void ForgetFound(const std::vector<uint8_t>& found);
   std::vector<std::pair<int, cv::Point2f>> predictions_;  // (id, prediction) of the last round
 
   FeatureTrackerOptions options_;
