@@ -7,6 +7,7 @@
 #include <string>
 
 #include "core/error.h"
+#include "mechanics/conjugate_gradient.h"
 
 namespace arreg::mechanics {
 
@@ -162,54 +163,13 @@ class CholmodSolver : public LinearSolver {
                        LinearSolverSummary* summary) {
     const int n = static_cast<int>(b.size());
     if (!options_.warm_start || x->size() != n) x->setZero(n);
-    const double b_norm = b.norm();
-    if (b_norm == 0.0) {
-      x->setZero();
-      return 0;
-    }
-    r_.noalias() = b - A.transpose() * (*x);
-    const double threshold = options_.relative_tolerance * b_norm;
-    double r_norm = r_.norm();
-    int it = 0;
-    if (r_norm > threshold) {
-      if (!SolveWithFactor(r_, &z_)) {
-        summary->status = LinearSolverStatus::kNumericalFailure;
-        summary->message = "cholmod_solve2 failed";
-        return 0;
-      }
-      p_ = z_;
-      double rz = r_.dot(z_);
-      while (it < options_.max_iterations) {
-        q_.noalias() = A.transpose() * p_;
-        const double curvature = p_.dot(q_);
-        if (!(curvature > 0.0)) {
-          summary->status = std::isfinite(curvature) ? LinearSolverStatus::kIndefinite
-                                                     : LinearSolverStatus::kNumericalFailure;
-          summary->message = "non-positive curvature p^T A p in CG";
-          break;
-        }
-        const double alpha = rz / curvature;
-        x->noalias() += alpha * p_;
-        r_.noalias() -= alpha * q_;
-        r_norm = r_.norm();
-        ++it;
-        if (r_norm <= threshold) break;
-        if (!SolveWithFactor(r_, &z_)) {
-          summary->status = LinearSolverStatus::kNumericalFailure;
-          summary->message = "cholmod_solve2 failed";
-          break;
-        }
-        const double rz_new = r_.dot(z_);
-        p_ = z_ + (rz_new / rz) * p_;
-        rz = rz_new;
-      }
-    }
-    summary->iterations = it;
-    summary->relative_residual = r_norm / b_norm;
-    if (summary->status == LinearSolverStatus::kConverged && !(r_norm <= threshold))
-      summary->status = std::isfinite(r_norm) ? LinearSolverStatus::kMaxIterations
-                                              : LinearSolverStatus::kNumericalFailure;
-    return it;
+    return PreconditionedConjugateGradient(
+        [&A](const Eigen::VectorXd& v, Eigen::VectorXd* out) {
+          out->noalias() = A.transpose() * v;
+        },
+        [this](const Eigen::VectorXd& r, Eigen::VectorXd* z) { return SolveWithFactor(r, z); },
+        "cholmod_solve2 failed", b, options_.relative_tolerance, options_.max_iterations, x, &cg_,
+        summary);
   }
 
   // A non-owning CHOLMOD view of the full symmetric CSC matrix; stype -1 makes
@@ -249,7 +209,7 @@ class CholmodSolver : public LinearSolver {
   double factorization_flops_ = 0.0, iteration_flops_ = 0.0;
   double flops_since_factorization_ = 0.0;  // factorisation + solves since
   int solves_since_factorization_ = 0;      // including the factorisation's
-  Eigen::VectorXd r_, z_, p_, q_;
+  CgVectors cg_;
 };
 
 }  // namespace

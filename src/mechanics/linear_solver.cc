@@ -8,6 +8,7 @@
 
 #include "core/error.h"
 #include "mechanics/cholmod_solver.h"
+#include "mechanics/conjugate_gradient.h"
 
 namespace arreg::mechanics {
 
@@ -93,43 +94,13 @@ class ConjugateGradientSolver : public LinearSolver {
       if (!SetUpPreconditioner(A, &summary)) return summary;
       pattern_valid_ = values_valid_ = true;
     }
-    const double b_norm = b.norm();
-    if (b_norm == 0.0) {
-      x->setZero();
-      return summary;
-    }
-    r_.noalias() = b - A * (*x);
-    Precondition(r_, &z_);
-    p_ = z_;
-    double rz = r_.dot(z_);
-    const double threshold = options_.relative_tolerance * b_norm;
-    double r_norm = r_.norm();
-    int it = 0;
-    while (r_norm > threshold && it < options_.max_iterations) {
-      q_.noalias() = A * p_;
-      const double curvature = p_.dot(q_);
-      if (!(curvature > 0.0)) {
-        summary.status = std::isfinite(curvature) ? LinearSolverStatus::kIndefinite
-                                                  : LinearSolverStatus::kNumericalFailure;
-        summary.message = "non-positive curvature p^T A p in CG";
-        break;
-      }
-      const double alpha = rz / curvature;
-      x->noalias() += alpha * p_;
-      r_.noalias() -= alpha * q_;
-      r_norm = r_.norm();
-      ++it;
-      if (r_norm <= threshold) break;
-      Precondition(r_, &z_);
-      const double rz_new = r_.dot(z_);
-      p_ = z_ + (rz_new / rz) * p_;
-      rz = rz_new;
-    }
-    summary.iterations = it;
-    summary.relative_residual = r_norm / b_norm;
-    if (summary.status == LinearSolverStatus::kConverged && r_norm > threshold)
-      summary.status = std::isfinite(r_norm) ? LinearSolverStatus::kMaxIterations
-                                             : LinearSolverStatus::kNumericalFailure;
+    PreconditionedConjugateGradient(
+        [&A](const Eigen::VectorXd& v, Eigen::VectorXd* out) { out->noalias() = A * v; },
+        [this](const Eigen::VectorXd& r, Eigen::VectorXd* z) {
+          Precondition(r, z);
+          return true;
+        },
+        "", b, options_.relative_tolerance, options_.max_iterations, x, &cg_, &summary);
     return summary;
   }
 
@@ -204,7 +175,8 @@ class ConjugateGradientSolver : public LinearSolver {
 
   LinearSolverOptions options_;
   bool pattern_valid_ = false, values_valid_ = false;
-  Eigen::VectorXd inverse_diagonal_, r_, z_, p_, q_;
+  Eigen::VectorXd inverse_diagonal_;
+  CgVectors cg_;
   std::vector<Eigen::Matrix3d> block_inverses_;
   Eigen::IncompleteCholesky<double, Eigen::Lower, Eigen::AMDOrdering<int>> ichol_;
 };
