@@ -11,6 +11,18 @@
 namespace arreg::cutting {
 namespace {
 
+// The mechanical state has the cut mesh's elements and rest and current positions.
+void ExpectStateMatchesMesh(const mechanics::MechanicalState& state, const CuttableMesh& mesh) {
+  ASSERT_EQ(state.num_vertices(), mesh.num_vertices());
+  ASSERT_EQ(state.num_tetrahedra(), mesh.num_tetrahedra());
+  for (int t = 0; t < mesh.num_tetrahedra(); ++t)
+    for (int k = 0; k < 4; ++k) ASSERT_EQ(state.tetrahedra()(t, k), mesh.tetrahedra()[t][k]);
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    ASSERT_LT((state.rest_position(v) - mesh.rest_positions()[v]).norm(), 1e-12);
+    ASSERT_LT((state.position(v) - mesh.positions()[v]).norm(), 1e-12);
+  }
+}
+
 // The mechanical state follows a sequence of cuts exactly (vertices, elements,
 // rest data recomputed), and embedded points stay where they were.
 TEST(MechanicsUpdate, StateFollowsSuccessiveCuts) {
@@ -37,14 +49,7 @@ TEST(MechanicsUpdate, StateFollowsSuccessiveCuts) {
     const std::vector<int> added = ApplyCutChange(change, &state);
     ASSERT_EQ(static_cast<int>(added.size()), change.new_tetrahedra.rows());
     ReembedAfterCut(change, added, state, points, &embedded);
-    ASSERT_EQ(state.num_vertices(), mesh.num_vertices());
-    ASSERT_EQ(state.num_tetrahedra(), mesh.num_tetrahedra());
-    for (int t = 0; t < mesh.num_tetrahedra(); ++t)
-      for (int k = 0; k < 4; ++k) ASSERT_EQ(state.tetrahedra()(t, k), mesh.tetrahedra()[t][k]);
-    for (int v = 0; v < mesh.num_vertices(); ++v) {
-      ASSERT_LT((state.rest_position(v) - mesh.rest_positions()[v]).norm(), 1e-12);
-      ASSERT_LT((state.position(v) - mesh.positions()[v]).norm(), 1e-12);
-    }
+    ASSERT_NO_FATAL_FAILURE(ExpectStateMatchesMesh(state, mesh));
     const RowMatX3d moved = embedded.Positions(state.rest_positions(), state.tetrahedra());
     EXPECT_LT((moved - points).cwiseAbs().maxCoeff(), 1e-9) << "cut " << c;
   }
@@ -79,14 +84,7 @@ TEST(MechanicsUpdate, StateFollowsCutsWithSnappedVertices) {
     snapped += static_cast<int>(change.snapped.size());
     const std::vector<int> added = ApplyCutChange(change, &state);
     ASSERT_EQ(static_cast<int>(added.size()), change.new_tetrahedra.rows());
-    ASSERT_EQ(state.num_vertices(), mesh.num_vertices());
-    ASSERT_EQ(state.num_tetrahedra(), mesh.num_tetrahedra());
-    for (int t = 0; t < mesh.num_tetrahedra(); ++t)
-      for (int k = 0; k < 4; ++k) ASSERT_EQ(state.tetrahedra()(t, k), mesh.tetrahedra()[t][k]);
-    for (int v = 0; v < mesh.num_vertices(); ++v) {
-      ASSERT_LT((state.rest_position(v) - mesh.rest_positions()[v]).norm(), 1e-12);
-      ASSERT_LT((state.position(v) - mesh.positions()[v]).norm(), 1e-12);
-    }
+    ASSERT_NO_FATAL_FAILURE(ExpectStateMatchesMesh(state, mesh));
     const mechanics::MechanicalState fresh(state.RestMesh(), mechanics::Material());
     double volume = 0;
     for (int t = 0; t < state.num_tetrahedra(); ++t) {
