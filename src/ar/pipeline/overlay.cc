@@ -58,25 +58,9 @@ bool Visible(const OverlayStructure& s) {
 
 void OverlayRenderer::ShadeVertices(const RowMatX3d& vertices, const RowMatX3i& faces,
                                     const Eigen::Vector3f& albedo) {
-  // Area-weighted vertex normals (as render::VertexNormals), into kept buffers.
-  normals_.setZero(vertices.rows(), 3);
-  for (int f = 0; f < faces.rows(); ++f) {
-    const Eigen::Vector3d a = vertices.row(faces(f, 0)), b = vertices.row(faces(f, 1)),
-                          c = vertices.row(faces(f, 2));
-    const Eigen::RowVector3d n = (b - a).cross(c - a).transpose();  // length = 2 x area
-    for (int k = 0; k < 3; ++k) normals_.row(faces(f, k)) += n;
-  }
-  const render::ShadingOptions shading;
-  const Eigen::Matrix3d r = raster_.camera_from_world.linear();
-  vertex_rgb_.resize(vertices.rows(), 3);
-  render::Fragment fr;
-  fr.front_facing = true;
-  for (int v = 0; v < vertices.rows(); ++v) {
-    fr.point_in_camera = raster_.camera_from_world * vertices.row(v).transpose();
-    const Eigen::Vector3d n = r * normals_.row(v).transpose();
-    fr.normal_in_camera = n.squaredNorm() > 0 ? n.normalized() : Eigen::Vector3d(0, 0, -1);
-    vertex_rgb_.row(v) = render::ShadeBlinnPhong(albedo, fr, shading).transpose();
-  }
+  render::VertexNormals(vertices, faces, &normals_);
+  render::ShadeVertices(vertices, normals_, raster_.camera_from_world, albedo,
+                        render::ShadingOptions(), &vertex_rgb_);
 }
 
 void OverlayRenderer::RenderCoverage(const render::PixelRect& box,
@@ -169,25 +153,16 @@ void OverlayRenderer::RenderSupersampled(const render::PixelRect& box,
   });
   auto draw_gouraud = [&](const RowMatX3d& vertices, const RowMatX3i& faces,
                           const Eigen::Vector3f& albedo, const render::DrawOptions& draw) {
-    const RowMatX3d normals = render::VertexNormals(vertices, faces);
-    const render::ShadingOptions shading;
-    const Eigen::Matrix3d r = crop.camera_from_world.linear();
-    std::vector<Eigen::Vector3f> colors(vertices.rows());
-    render::Fragment f;
-    f.front_facing = true;
-    for (int v = 0; v < vertices.rows(); ++v) {
-      f.point_in_camera = crop.camera_from_world * vertices.row(v).transpose();
-      const Eigen::Vector3d n = r * normals.row(v).transpose();
-      f.normal_in_camera = n.squaredNorm() > 0 ? n.normalized() : Eigen::Vector3d(0, 0, -1);
-      colors[v] = render::ShadeBlinnPhong(albedo, f, shading);
-    }
+    RowMatX3f colors;
+    render::ShadeVertices(vertices, render::VertexNormals(vertices, faces), crop.camera_from_world,
+                          albedo, render::ShadingOptions(), &colors);
     target.Draw(
         vertices, faces, RowMatX3d(),
         [&](const render::Fragment& fr) {
           const Eigen::Vector3f b = fr.barycentric.cast<float>();
-          return Eigen::Vector3f(b[0] * colors[faces(fr.face, 0)] +
-                                 b[1] * colors[faces(fr.face, 1)] +
-                                 b[2] * colors[faces(fr.face, 2)]);
+          return Eigen::Vector3f(b[0] * colors.row(faces(fr.face, 0)) +
+                                 b[1] * colors.row(faces(fr.face, 1)) +
+                                 b[2] * colors.row(faces(fr.face, 2)));
         },
         draw);
   };

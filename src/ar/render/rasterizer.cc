@@ -260,18 +260,39 @@ Eigen::Vector3f ShadeBlinnPhong(const Eigen::Vector3f& albedo, const Fragment& f
 }
 
 RowMatX3d VertexNormals(const RowMatX3d& vertices, const RowMatX3i& faces) {
-  RowMatX3d normals = RowMatX3d::Zero(vertices.rows(), 3);
+  RowMatX3d normals;
+  VertexNormals(vertices, faces, &normals);
+  return normals;
+}
+
+void VertexNormals(const RowMatX3d& vertices, const RowMatX3i& faces, RowMatX3d* normals) {
+  normals->setZero(vertices.rows(), 3);
   for (int f = 0; f < faces.rows(); ++f) {
     const Eigen::Vector3d a = vertices.row(faces(f, 0)), b = vertices.row(faces(f, 1)),
                           c = vertices.row(faces(f, 2));
     const Eigen::Vector3d n = (b - a).cross(c - a);  // length = 2 x area
-    for (int k = 0; k < 3; ++k) normals.row(faces(f, k)) += n.transpose();
+    for (int k = 0; k < 3; ++k) normals->row(faces(f, k)) += n.transpose();
   }
-  for (int i = 0; i < normals.rows(); ++i) {
-    const double len = normals.row(i).norm();
-    if (len > 0) normals.row(i) /= len;
+  for (int i = 0; i < normals->rows(); ++i) {
+    const double len = normals->row(i).norm();
+    if (len > 0) normals->row(i) /= len;
   }
-  return normals;
+}
+
+void ShadeVertices(const RowMatX3d& vertices, const RowMatX3d& normals,
+                   const Eigen::Isometry3d& camera_from_world, const Eigen::Vector3f& albedo,
+                   const ShadingOptions& options,
+                   Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>* rgb) {
+  const Eigen::Matrix3d r = camera_from_world.linear();
+  rgb->resize(vertices.rows(), 3);
+  Fragment f;
+  f.front_facing = true;
+  for (int v = 0; v < vertices.rows(); ++v) {
+    f.point_in_camera = camera_from_world * vertices.row(v).transpose();
+    const Eigen::Vector3d n = r * normals.row(v).transpose();
+    f.normal_in_camera = n.squaredNorm() > 0 ? n.normalized() : Eigen::Vector3d(0, 0, -1);
+    rgb->row(v) = ShadeBlinnPhong(albedo, f, options).transpose();
+  }
 }
 
 }  // namespace arreg::render

@@ -117,7 +117,19 @@ struct ShadingOptions {
 Eigen::Vector3f ShadeBlinnPhong(const Eigen::Vector3f& albedo, const Fragment& fragment,
                                 const ShadingOptions& options);
 
-// Per-vertex unit normals of a triangle mesh, area-weighted (#V x 3).
+// Per-vertex unit normals of a triangle mesh, area-weighted (#V x 3; zero at
+// vertices of no face or of degenerate faces only).
 RowMatX3d VertexNormals(const RowMatX3d& vertices, const RowMatX3i& faces);
+// The same into *normals, reusing its buffer (callers drawing every frame).
+void VertexNormals(const RowMatX3d& vertices, const RowMatX3i& faces, RowMatX3d* normals);
+
+// Gouraud shading input: the Blinn-Phong colour (linear RGB) at each vertex of a
+// surface of one albedo, with world-frame vertex normals `normals`, seen by a
+// camera at camera_from_world (vertices without a normal face the camera).
+// Into *rgb (#V x 3), reusing its buffer.
+void ShadeVertices(const RowMatX3d& vertices, const RowMatX3d& normals,
+                   const Eigen::Isometry3d& camera_from_world, const Eigen::Vector3f& albedo,
+                   const ShadingOptions& options,
+                   Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>* rgb);
 
 }  // namespace arreg::render
