@@ -72,7 +72,6 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
   try {
     const cutting::CutExtrusionOptions ext = cutting::CutExtrusionCovering(
         polyline_mm, eye_mm, state.positions(), options_.extrusion_margin_mm);
-    SurfaceMesh full = cutting::ExtrudeCutPolyline(polyline_mm, eye_mm, ext);
     // Only the segments with a point not applied before are cut: the detector keeps its
     // cut points (p^t at insertion), so a segment between two applied points lies on the
     // crack already, and cutting it again with this frame's S (the model has moved since)
@@ -147,7 +146,7 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
     } else {
       ev.status = cut.status == cutting::CutStatus::kNoCrossing ? "no-crossing" : "rejected";
     }
-    if (cut_surface) *cut_surface = std::move(full);
+    if (cut_surface) *cut_surface = cutting::ExtrudeCutPolyline(polyline_mm, eye_mm, ext);
   } catch (const Error& e) {
     ev.status = "failed";
     ev.message = e.what();
