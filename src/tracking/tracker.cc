@@ -33,6 +33,8 @@ const char* TrackStatusName(TrackStatus status) {
       return "outlier-spatiotemporal";
     case TrackStatus::kSpecular:
       return "specular";
+    case TrackStatus::kLostAppearance:
+      return "lost-appearance";
   }
   return "unknown";
 }
@@ -80,9 +82,18 @@ void ReidentifyOptions::Check() const {
                     min_lk_correlation);
 }
 
+void AppearanceCheckOptions::Check() const {
+  ARREG_CHECK_INPUT(every_frames >= 1, "", "AppearanceCheckOptions.every_frames",
+                    "must be >= 1, got ", every_frames);
+  ARREG_CHECK_INPUT(min_correlation >= -1 && min_correlation <= 1, "",
+                    "AppearanceCheckOptions.min_correlation", "must be in [-1, 1], got ",
+                    min_correlation);
+}
+
 void FeatureTrackerOptions::Check() const {
   surf.Check();
   reidentify.Check();
+  appearance.Check();
   lk.Check();
   outliers.Check();
   specular.Check();
@@ -397,6 +408,7 @@ int FeatureTracker::Detect(const cv::Mat& roi_mask) {
   surf_.Describe(accepted, &descriptors);
   for (size_t i = 0; i < accepted.size(); ++i) {
     const int id = store_.Add(accepted[i], descriptors.row(static_cast<int>(i)));
+    RememberLook(id, accepted[i].position_px);
     store_.Record(id, {frame_, accepted[i].position_px, TrackStatus::kTracked});
     current_.push_back({id, accepted[i].position_px, cv::Point2f(0, 0), TrackStatus::kTracked});
     previous_position_.push_back(accepted[i].position_px);
@@ -558,11 +570,18 @@ void FeatureTracker::RememberLost() {
     // Where it was last followed (the frame before): LK's position in this
     // frame is what failed. Its look there verifies a re-identification.
     LostFeature lost{current_[i].id, frame_, previous_position_[i], {}, {}};
-    SamplePatch(previous_pyramid_.float_image(0), lost.position_px, options_.lk.window_px,
-                &lost.patch);
-    if (options_.reidentify.reacquire_by_lk)
-      SamplePatch(previous_pyramid_.float_image(0), lost.position_px,
-                  options_.lk.window_px + 2 * kReacquireMarginPx, &lost.surroundings);
+    if (status == TrackStatus::kLostAppearance) {
+      // Its last look may be the occluder edge that dragged it: a match must
+      // look like the feature at its acquisition, and is found by SURF only
+      // (re-acquisition by LK would follow the last look).
+      lost.patch = acquired_look_[lost.id];
+    } else {
+      SamplePatch(previous_pyramid_.float_image(0), lost.position_px, options_.lk.window_px,
+                  &lost.patch);
+      if (options_.reidentify.reacquire_by_lk)
+        SamplePatch(previous_pyramid_.float_image(0), lost.position_px,
+                    options_.lk.window_px + 2 * kReacquireMarginPx, &lost.surroundings);
+    }
     lost_.push_back(std::move(lost));
     lost_ids.push_back(current_[i].id);
   }
@@ -789,7 +808,24 @@ int FeatureTracker::Reidentify(const cv::Mat& roi_mask) {
   return count;
 }
 
+void FeatureTracker::RememberLook(int id, cv::Point2f position_px) {
+  if (!options_.appearance.enabled) return;
+  if (static_cast<int>(acquired_look_.size()) <= id) acquired_look_.resize(id + 1);
+  SamplePatch(pyramid_.float_image(0), position_px, options_.lk.window_px, &acquired_look_[id]);
+}
+
+void FeatureTracker::CheckAppearance() {
+  std::vector<float> window;
+  for (FeatureState& f : current_) {
+    if (f.status != TrackStatus::kTracked) continue;
+    SamplePatch(pyramid_.float_image(0), f.position_px, options_.lk.window_px, &window);
+    if (Correlation(window, acquired_look_[f.id]) < options_.appearance.min_correlation)
+      f.status = TrackStatus::kLostAppearance;
+  }
+}
+
 void FeatureTracker::Restore(int id, const cv::Point2f& position_px) {
+  RememberLook(id, position_px);
   current_.push_back({id, position_px, cv::Point2f(0, 0), TrackStatus::kTracked});
   previous_position_.push_back(position_px);
   store_.Record(id, {frame_, position_px, TrackStatus::kTracked, true});
@@ -944,6 +980,7 @@ TrackFrameSummary FeatureTracker::Initialize(const cv::Mat& image, const cv::Mat
   current_.clear();
   previous_position_.clear();
   lost_.clear();
+  acquired_look_.clear();
   reference_descriptors_.release();
   round_frame_ = -1;
   PrepareFrame(image, roi_mask);
@@ -1035,6 +1072,8 @@ TrackFrameSummary FeatureTracker::Track(const cv::Mat& image, const cv::Mat& roi
         if (outlier_flags_[j])
           current_[candidates_[j]].status = TrackStatus::kOutlierSpatioTemporal;
     }
+    if (options_.appearance.enabled && frame_ % options_.appearance.every_frames == 0)
+      CheckAppearance();
     for (const FeatureState& f : current_) store_.Record(f.id, {frame_, f.position_px, f.status});
   }
   if (options_.reidentify.enabled) {

@@ -92,10 +92,12 @@ TEST(RealClip, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
   EXPECT_GE(on_grasper, 10) << "the grasper is textured; SURF finds points on it";
   // The issue asks for >= 50 % survivors. NOT MET (15.1 %, see docs/tracking.md,
   // "Real clip"): the grasper sweeps over the left tissue and stretches and covers
-  // the upper tissue; lost features come back only by re-identification, which
-  // the deformation during the occlusion limits. Guarded here is what holds, so
-  // that a regression shows:
-  EXPECT_GE(still_tracked, 0.14 * first.num_active);
+  // the upper tissue, the blue instrument comes down over the lower right tissue
+  // and stays; lost features come back only by re-identification, which the
+  // deformation during the occlusion limits (tracked backwards from the last
+  // frame, 11.7 % of its features reach frame 0). Guarded here is what holds,
+  // so that a regression shows:
+  EXPECT_GE(still_tracked, 0.145 * first.num_active);
 
   // The survivors have not drifted: followed back from the last frame (LK
   // frame by frame, independent of the tracker's own chain) to where they were
@@ -141,8 +143,9 @@ TEST(RealClip, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
   const double median = round_trip_px[round_trip_px.size() / 2];
   const double p90 = round_trip_px[round_trip_px.size() * 9 / 10];
   std::printf("survivors' round trip: median %.2f px, 90th percentile %.2f px\n", median, p90);
-  EXPECT_LT(median, 2.0);
-  EXPECT_LT(p90, 6.0);
+  // Measured 1.12 and 4.11 px.
+  EXPECT_LT(median, 1.5);
+  EXPECT_LT(p90, 5.0);
 }
 
 TEST(RealClip, SkippingTheLoopFilterChangesTheFramesByLessThanOneGreyLevel) {
