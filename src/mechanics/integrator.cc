@@ -225,12 +225,18 @@ StepSummary ImplicitEulerIntegrator::SubStep(MechanicalState* state,
     H.SetZero();
     elastic->AddHessian(*state, y, 1.0, &H);
     if (beta > 0) {
-      if (it == 0) {
-        k0_values_.assign(H.values(), H.values() + H.nonzeros());
-        k0_matrix_ = H.matrix();
-      }
       double* v = H.values();
-      for (int k = 0; k < H.nonzeros(); ++k) v[k] += (beta / h) * k0_values_[k];
+      if (it == 0) {
+        // K0 is H itself here; only later Newton iterations need a copy of it (the one-step
+        // mode of the registration saves a matrix copy per step).
+        if (max_it > 1) {
+          k0_values_.assign(H.values(), H.values() + H.nonzeros());
+          k0_matrix_ = H.matrix();
+        }
+        for (int k = 0; k < H.nonzeros(); ++k) v[k] *= 1.0 + beta / h;
+      } else {
+        for (int k = 0; k < H.nonzeros(); ++k) v[k] += (beta / h) * k0_values_[k];
+      }
     }
     cache_.AddMass(mass_scale, &H);
     for (const EnergyTerm* term : terms) term->AddHessian(*state, y, 1.0, &H);
