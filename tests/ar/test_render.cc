@@ -307,6 +307,50 @@ TEST(CoverageLayer, MeshInteriorIsFullyCoveredWithoutCracks) {
   EXPECT_NEAR(layer.CoveredArea(), 4 * a * a, 0.005 * 4 * a * a);
 }
 
+TEST(CoverageLayer, ColourAndDepthArePerspectiveCorrectInsideTheTriangle) {
+  RasterCamera camera = TestCamera();
+  camera.width = 160;
+  camera.height = 120;
+  camera.cx = 79.5;
+  camera.cy = 59.5;
+  // A triangle slanted in depth (z 40..160 mm) with one primary colour per corner.
+  RowMatX3d v(3, 3);
+  v << -30, -20, 40, 60, -10, 160, -5, 35, 90;
+  RowMatX3i f(1, 3);
+  f << 0, 1, 2;
+  RowMatX3f rgb(3, 3);
+  rgb << 1, 0, 0, 0, 1, 0, 0, 0, 1;
+  CoverageLayer layer(camera);
+  layer.Clear({0, 0, camera.width, camera.height});
+  layer.Draw(v, f, rgb, CoverageDrawOptions());
+  // Truth per pixel: the ray through the pixel centre meets the triangle's plane; the
+  // barycentric coordinates of that 3D point weight the corner colours.
+  const Eigen::Vector3d a = v.row(0), b = v.row(1), c = v.row(2);
+  const Eigen::Vector3d n = (b - a).cross(c - a);
+  int checked = 0;
+  double worst_rgb = 0, worst_inv_depth = 0;
+  for (int y = 0; y < camera.height; ++y)
+    for (int x = 0; x < camera.width; ++x) {
+      if (layer.alpha(x, y) != 1.0f) continue;  // the interior, where nothing is clamped
+      const Eigen::Vector3d ray((x - camera.cx) / camera.fx, (y - camera.cy) / camera.fy, 1.0);
+      const Eigen::Vector3d p = ray * (n.dot(a) / n.dot(ray));
+      const double area = n.norm();
+      const Eigen::Vector3d w((b - p).cross(c - p).norm() / area,
+                              (c - p).cross(a - p).norm() / area,
+                              (a - p).cross(b - p).norm() / area);
+      ASSERT_NEAR(w.sum(), 1.0, 1e-9) << x << "," << y;  // p lies inside the triangle
+      worst_rgb = std::max(worst_rgb, (layer.rgb(x, y).cast<double>() - w).cwiseAbs().maxCoeff());
+      worst_inv_depth =
+          std::max(worst_inv_depth, std::abs(layer.inverse_depth(x, y) * p.z() - 1.0));
+      ++checked;
+    }
+  EXPECT_GT(checked, 1500);
+  // The corners are snapped to 1/256 px, which moves the weights by up to ~(1/512 px) / (size of
+  // the triangle, ~100 px); affine instead of perspective interpolation would be off by ~0.1.
+  EXPECT_LT(worst_rgb, 1e-4);        // colours in [0, 1]
+  EXPECT_LT(worst_inv_depth, 1e-4);  // relative
+}
+
 TEST(CoverageLayer, NearerSurfaceWinsInEitherDrawOrder) {
   const RasterCamera camera = TestCamera();
   RowMatX3d far_v, near_v;

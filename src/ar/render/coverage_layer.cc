@@ -198,7 +198,7 @@ int64_t CoverageLayer::DrawTriangle(const Vertex v_in[3], const bool smooth_in[3
   }
   // Edge function of edge e at pixel centre (x, y): E = (Bx - Ax)(y*s - Ay) - (By - Ay)(x*s - Ax)
   // in 1/s^2 px^2 (s = 256); E / area is the barycentric weight of the vertex opposite e.
-  int64_t step_x[3], step_y[3], threshold[3];
+  int64_t step_x[3], step_y[3], threshold[3], interior[3];
   float to_distance[3];  // E -> signed distance to the edge line in px (positive inside)
   bool any_smooth = false;
   for (int e = 0; e < 3; ++e) {
@@ -211,9 +211,13 @@ int64_t CoverageLayer::DrawTriangle(const Vertex v_in[3], const bool smooth_in[3
     if (smooth[e]) {
       // Pixels whose centre lies less than half a pixel outside get partial coverage.
       threshold[e] = static_cast<int64_t>(std::floor(-0.5 * kSubpixel * length)) + 1;
+      // At least half a pixel inside: full coverage (with a margin for the float rounding of
+      // the coverage formula, so that the interior path below gives what it would).
+      interior[e] = static_cast<int64_t>(std::ceil(0.5 * kSubpixel * length * (1 + 1e-6))) + 2;
       any_smooth = true;
     } else {
       threshold[e] = OwnsEdge(dx, dy) ? 0 : 1;
+      interior[e] = threshold[e];
     }
   }
   const double margin = any_smooth ? 1.0 : 0.0;
@@ -234,6 +238,15 @@ int64_t CoverageLayer::DrawTriangle(const Vertex v_in[3], const bool smooth_in[3
     opposite_inv_z[e] = static_cast<float>(inv_z[o[(e + 2) % 3]]);
     opposite_rgb[e] = v_in[o[(e + 2) % 3]].rgb;
   }
+  // Along a row the weights are linear in x, so inside the triangle the perspective numerators
+  // sum_e E_e / z_e and sum_e E_e rgb_e / z_e advance by constant steps.
+  double step_inv_depth = 0;
+  Eigen::Vector3d step_rgb = Eigen::Vector3d::Zero();
+  for (int e = 0; e < 3; ++e) {
+    const double s = static_cast<double>(step_x[e]) * opposite_inv_z[e];
+    step_inv_depth += s;
+    step_rgb += s * opposite_rgb[e].cast<double>();
+  }
   int64_t row_e[3];
   for (int e = 0; e < 3; ++e) {
     const int a = o[e], b = o[(e + 1) % 3];
@@ -242,60 +255,101 @@ int64_t CoverageLayer::DrawTriangle(const Vertex v_in[3], const bool smooth_in[3
   }
   const float inv_area = static_cast<float>(1.0 / static_cast<double>(area));
   int64_t written = 0;
-  for (int y = y0; y <= y1; ++y) {
-    // The row's span where every edge passes its test, solved exactly in integers.
-    int64_t lo = x0, hi = x1;
-    for (int e = 0; e < 3 && lo <= hi; ++e) {
-      const int64_t need = threshold[e] - row_e[e];  // step_x * (x - x0) >= need
-      if (step_x[e] > 0)
-        lo = std::max(lo, x0 + CeilDiv(need, step_x[e]));
-      else if (step_x[e] < 0)
-        hi = std::min(hi, x0 + FloorDiv(-need, -step_x[e]));
-      else if (need > 0)
-        hi = lo - 1;
+  // Merges a fragment into pixel p.
+  const auto merge = [](Pixel& p, float coverage, float inv_depth, float r, float g, float b) {
+    if (p.alpha == 0) {
+      p = Pixel{coverage, inv_depth, r, g, b};
+    } else if (inv_depth >= p.inv_depth) {  // in front of what is there
+      const float merged = std::max(coverage, p.alpha), keep = (merged - coverage) / merged;
+      const float take = coverage / merged;
+      p = Pixel{merged, inv_depth, take * r + keep * p.r, take * g + keep * p.g,
+                take * b + keep * p.b};
+    } else if (coverage > p.alpha) {  // behind: shows where the front leaves room
+      const float merged = coverage, keep = p.alpha / merged, take = 1.0f - keep;
+      p.r = keep * p.r + take * r;
+      p.g = keep * p.g + take * g;
+      p.b = keep * p.b + take * b;
+      p.alpha = merged;
     }
+  };
+  // Any pixel of the row's span, near the edges: partial coverage, clamped weights.
+  const auto edge_pixel = [&](Pixel& p, const int64_t e_at[3]) {
+    float coverage = opacity, weight_sum = 0, inv_depth = 0;
+    bool clamped = false;
+    Eigen::Vector3f rgb = Eigen::Vector3f::Zero();
+    for (int e = 0; e < 3; ++e) {
+      const float value = static_cast<float>(e_at[e]);
+      if (smooth[e]) coverage *= std::min(1.0f, 0.5f + value * to_distance[e]);
+      // Outside samples of the anti-aliased fringe take the colour and depth on the edge.
+      const float w = value > 0 ? value : 0.0f;
+      clamped |= value < 0;
+      const float wz = w * opposite_inv_z[e];
+      weight_sum += w;
+      inv_depth += wz;
+      rgb += wz * opposite_rgb[e];
+    }
+    if (inv_depth <= 0) return false;
+    rgb *= 1.0f / inv_depth;  // perspective-correct Gouraud
+    // The weights sum to the area inside the triangle; not where the fringe clamped them.
+    inv_depth *= clamped ? 1.0f / weight_sum : inv_area;
+    merge(p, coverage, inv_depth, rgb.x(), rgb.y(), rgb.z());
+    return true;
+  };
+  // Columns [lo, hi] of the row (from x0) where step_x * (x - x0) >= limit - row_e for all edges.
+  const auto solve_span = [&](const int64_t limit[3], int64_t* lo, int64_t* hi) {
+    for (int e = 0; e < 3 && *lo <= *hi; ++e) {
+      const int64_t need = limit[e] - row_e[e];
+      if (step_x[e] > 0)
+        *lo = std::max(*lo, x0 + CeilDiv(need, step_x[e]));
+      else if (step_x[e] < 0)
+        *hi = std::min(*hi, x0 + FloorDiv(-need, -step_x[e]));
+      else if (need > 0)
+        *hi = *lo - 1;
+    }
+  };
+  for (int y = y0; y <= y1; ++y) {
+    // The row's span where every edge passes its test, solved exactly in integers, and inside
+    // it the span of full coverage and unclamped weights.
+    int64_t lo = x0, hi = x1;
+    solve_span(threshold, &lo, &hi);
     if (lo <= hi) {
+      int64_t in_lo = lo, in_hi = hi;
+      solve_span(interior, &in_lo, &in_hi);
+      if (in_lo > in_hi) {  // no interior: the whole span is edge pixels
+        in_lo = hi + 1;
+        in_hi = hi;
+      }
       Pixel* row = &pixels_[Index(0, y)];
       row_begin_[y] = std::min(row_begin_[y], static_cast<int>(lo));
       row_end_[y] = std::max(row_end_[y], static_cast<int>(hi) + 1);
       int64_t e_at[3];
       for (int e = 0; e < 3; ++e) e_at[e] = row_e[e] + step_x[e] * (lo - x0);
-      for (int64_t x = lo; x <= hi; ++x) {
-        float coverage = opacity, weight_sum = 0, inv_depth = 0;
-        bool clamped = false;
-        Eigen::Vector3f rgb = Eigen::Vector3f::Zero();
+      for (int64_t x = lo; x < in_lo; ++x) {
+        written += edge_pixel(row[x], e_at);
+        for (int e = 0; e < 3; ++e) e_at[e] += step_x[e];
+      }
+      if (in_lo <= in_hi) {
+        double inv_depth_sum = 0;
+        Eigen::Vector3d rgb_sum = Eigen::Vector3d::Zero();
         for (int e = 0; e < 3; ++e) {
-          const float value = static_cast<float>(e_at[e]);
-          if (smooth[e]) coverage *= std::min(1.0f, 0.5f + value * to_distance[e]);
-          // Outside samples of the anti-aliased fringe take the colour and depth on the edge.
-          const float w = value > 0 ? value : 0.0f;
-          clamped |= value < 0;
-          const float wz = w * opposite_inv_z[e];
-          weight_sum += w;
-          inv_depth += wz;
-          rgb += wz * opposite_rgb[e];
-          e_at[e] += step_x[e];
+          const double wz = static_cast<double>(e_at[e]) * opposite_inv_z[e];
+          inv_depth_sum += wz;
+          rgb_sum += wz * opposite_rgb[e].cast<double>();
         }
-        if (inv_depth <= 0) continue;
-        rgb *= 1.0f / inv_depth;  // perspective-correct Gouraud
-        // The weights sum to the area inside the triangle; not where the fringe clamped them.
-        inv_depth *= clamped ? 1.0f / weight_sum : inv_area;
-        Pixel& p = row[x];
-        if (p.alpha == 0) {
-          p = Pixel{coverage, inv_depth, rgb.x(), rgb.y(), rgb.z()};
-        } else if (inv_depth >= p.inv_depth) {  // in front of what is there
-          const float merged = std::max(coverage, p.alpha), keep = (merged - coverage) / merged;
-          const float take = coverage / merged;
-          p = Pixel{merged, inv_depth, take * rgb.x() + keep * p.r, take * rgb.y() + keep * p.g,
-                    take * rgb.z() + keep * p.b};
-        } else if (coverage > p.alpha) {  // behind: shows where the front leaves room
-          const float merged = coverage, keep = p.alpha / merged, take = 1.0f - keep;
-          p.r = keep * p.r + take * rgb.x();
-          p.g = keep * p.g + take * rgb.y();
-          p.b = keep * p.b + take * rgb.z();
-          p.alpha = merged;
+        for (int64_t x = in_lo; x <= in_hi; ++x) {
+          const double to_rgb = 1.0 / inv_depth_sum;
+          merge(row[x], opacity, static_cast<float>(inv_depth_sum) * inv_area,
+                static_cast<float>(rgb_sum.x() * to_rgb), static_cast<float>(rgb_sum.y() * to_rgb),
+                static_cast<float>(rgb_sum.z() * to_rgb));
+          inv_depth_sum += step_inv_depth;
+          rgb_sum += step_rgb;
         }
-        ++written;
+        written += in_hi - in_lo + 1;
+        for (int e = 0; e < 3; ++e) e_at[e] += step_x[e] * (in_hi - in_lo + 1);
+      }
+      for (int64_t x = std::max(lo, in_hi + 1); x <= hi; ++x) {
+        written += edge_pixel(row[x], e_at);
+        for (int e = 0; e < 3; ++e) e_at[e] += step_x[e];
       }
     }
     for (int e = 0; e < 3; ++e) row_e[e] += step_y[e];
