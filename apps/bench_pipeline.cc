@@ -38,17 +38,27 @@ class TimeCollector : public pipeline::FrameObserver {
     sum += f.ms;
     ++frames;
     features += f.stats.features_alive;
+    linear_iterations += f.stats.linear_iterations;
+    factorizations += f.stats.factorizations;
+    if (f.cut_events)
+      for (const pipeline::CutEvent& e : *f.cut_events) cuts_applied += e.status == "cut";
   }
   pipeline::StageTimes sum;
   int frames = 0;
   double frame0_ms = 0;
   double features = 0;
+  // The mechanics stage's cost follows these: CG iterations and refactorisations of the implicit
+  // step, and cuts (each one enlarges the mesh and changes the matrix pattern).
+  double linear_iterations = 0, factorizations = 0;
+  int cuts_applied = 0;
 };
 
 struct Measurement {
   std::vector<double> stage[7];  // ms per frame per run, in kStages order
   std::vector<double> total, frame0;
   double mean_features = 0;
+  double mean_linear_iterations = 0, factorizations_per_frame = 0;
+  int cuts_applied = 0;
   int frames = 0;
 };
 const char* kStages[7] = {"decode", "track", "lift", "mechanics", "cutting", "render", "encode"};
@@ -74,6 +84,9 @@ Measurement Measure(const Scene& scene, const pipeline::PipelineOptions& options
     m.total.push_back(s.Total() / c.frames);
     m.frame0.push_back(c.frame0_ms);
     m.mean_features = c.features / c.frames;
+    m.mean_linear_iterations = c.linear_iterations / c.frames;
+    m.factorizations_per_frame = c.factorizations / c.frames;
+    m.cuts_applied = c.cuts_applied;
     m.frames = c.frames + 1;
   }
   std::error_code ec;
@@ -88,6 +101,9 @@ nlohmann::json Report(const Measurement& m) {
   j["fps"] = 1000.0 / Median(m.total);
   j["frame0_ms"] = Median(m.frame0);
   j["mean_alive_features"] = m.mean_features;
+  j["mean_cg_iterations"] = m.mean_linear_iterations;
+  j["factorizations_per_frame"] = m.factorizations_per_frame;
+  j["cuts_applied"] = m.cuts_applied;
   return j;
 }
 
@@ -101,6 +117,9 @@ void Print(const char* title, const Measurement& m) {
                 sum > 0 ? 100.0 * Median(m.stage[k]) / sum : 0.0);
   std::printf("  %-10s %8.3f ms  -> %.1f frames/s (frame 0: %.1f ms)\n", "total", Median(m.total),
               1000.0 / Median(m.total), Median(m.frame0));
+  std::printf(
+      "  mechanics: %.2f CG iterations and %.3f factorisations per frame, %d cuts applied\n",
+      m.mean_linear_iterations, m.factorizations_per_frame, m.cuts_applied);
 }
 
 }  // namespace

@@ -61,6 +61,8 @@ struct FrameStats {
   double spring_length_mean_mm = 0, spring_length_max_mm = 0;  // over alive springs
   int inverted_elements = 0;
   std::string mechanics_status;  // StepStatusName of the integrator
+  int linear_iterations = 0;     // CG iterations of the step (0 with a direct solve)
+  int factorizations = 0;        // numeric Cholesky factorisations in the step
 };
 
 // Everything known about one frame; valid only during FrameObserver::OnFrame.

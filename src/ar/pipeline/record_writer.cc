@@ -40,6 +40,8 @@ nlohmann::json FrameRecord(const FrameState& f) {
   j["feature_error_max_mm"] = j["spring_length_max_mm"];
   j["mechanics_status"] = f.stats.mechanics_status;
   j["inverted_elements"] = f.stats.inverted_elements;
+  j["linear_iterations"] = f.stats.linear_iterations;
+  j["factorizations"] = f.stats.factorizations;
   nlohmann::json cuts = nlohmann::json::array();
   if (f.cut_events)
     for (const CutEvent& e : *f.cut_events) cuts.push_back(e.ToJson());

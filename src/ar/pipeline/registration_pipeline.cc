@@ -380,11 +380,15 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       const mechanics::StepSummary step = integrator.Step(&state, &elastic, terms);
       stats.mechanics_status = mechanics::StepStatusName(step.status);
       stats.inverted_elements = step.inverted_elements;
+      stats.linear_iterations = step.linear_iterations;
+      stats.factorizations = step.factorizations;
       ms.mechanics = since(t0);
     } else {
       stats.mechanics_status = mechanics::StepStatusName(mechanics::StepStatus::kConverged);
     }
+    t0 = now();
     feature_embedding.Positions(state.positions(), state.tetrahedra(), &anchors);
+    ms.mechanics += since(t0);
 
     // Cutting.
     if (topology) {
