@@ -286,12 +286,13 @@ TEST(Generator, PrecutOpensOverMostOfItsLength) {
   const std::string d = testing::ScratchDir("synth_precut");
   SynthOptions o = SmallRun("band-precut-side", d);
   o.write_video = false;
-  o.frames = 6;  // frame 5 is the peak of the stretch... and the last frame here
+  o.frames = 6;  // the pull reaches its peak at t = 0.6 and is held to the last frame
   const SynthSummary s = GenerateSyntheticScene(o);
   EXPECT_EQ(s.unconverged_frames, 0);
   EXPECT_EQ(s.cut_first_frame, 0);
   EXPECT_GE(s.cut_open_fraction, 0.5);
-  EXPECT_GT(s.max_cut_opening_mm, 2.0);
+  // Held at 186 % to the last frame (thesis 7.7.1), the slit gapes wide open at the end.
+  EXPECT_GT(s.max_cut_opening_mm, 30.0);
   EXPECT_GT(s.final_truth_vertices, s.truth_vertices);
   EXPECT_LT(s.max_volume_change, 0.02);
   const std::string cut = Slurp(d + "/gt/cut.json");
@@ -312,6 +313,8 @@ TEST(Generator, CutWhileFilmedOpensProgressively) {
   EXPECT_LE(s.cut_last_frame, 18);
   EXPECT_GT(s.cut_last_frame, s.cut_first_frame + 5);
   EXPECT_GE(s.cut_open_fraction, 0.5);
+  // Torn while pulled to 180 %, the halves splay into a V (thesis 7.7.2): ~80 mm at the top.
+  EXPECT_GT(s.max_cut_opening_mm, 60.0);
 }
 
 TEST(Generator, RejectsUnknownScenarioAndBadOptions) {
