@@ -94,7 +94,9 @@ int RunBenchDetection(int argc, char** argv) {
   parser.AddInt("frames", &frames, "N", "frames per sequence (the tip advances 1 mm a frame)");
   parser.AddInt("repeats", &repeats, "N", "sequences timed (figures are medians over all frames)");
   parser.AddDouble("noise", &noise_mm, "MM", "tracking noise (std. dev.) added to the targets");
-  parser.AddDouble("neighbour-radius", &options.neighbour_radius_mm, "MM", "r_F");
+  double fixed_radius_mm = 0.0;
+  parser.AddDouble("neighbour-radius", &fixed_radius_mm, "MM",
+                   "r_F in mm, with r_pc at 7 mm (0: both from the features' spacing)");
   parser.AddInt("seed", &seed, "N", "seed of the noise (>= 0)");
   parser.AddString("json", &json_path, "OUT", "also write the figures as JSON");
   if (!parser.Parse(argc, argv)) return 0;
@@ -104,11 +106,16 @@ int RunBenchDetection(int argc, char** argv) {
   ARREG_CHECK_INPUT(repeats >= 1, "", "--repeats", "must be >= 1, got ", repeats);
   ARREG_CHECK_INPUT(noise_mm >= 0.0, "", "--noise", "must be >= 0, got ", noise_mm);
   ARREG_CHECK_INPUT(seed >= 0, "", "--seed", "must be >= 0, got ", seed);
+  if (fixed_radius_mm > 0.0) {
+    options.neighbour_radius_mm = fixed_radius_mm;
+    options.neighbours_per_feature = 0;
+  }
   options.Check();
 
   const Field field = MakeField(nx, ny, spacing_mm);
   std::vector<double> update_ms, insert_ms, init_ms;
   int pairs = 0, cut_points = 0;
+  double radius_mm = options.neighbour_radius_mm;  // r_F in use (resolved by Initialize)
   for (int rep = 0; rep < repeats; ++rep) {
     std::mt19937 rng(static_cast<unsigned>(seed) + rep);
     cutting::CutDetector detector(options);
@@ -116,6 +123,7 @@ int RunBenchDetection(int argc, char** argv) {
     detector.Initialize(field.p0, field.ids);
     init_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
     pairs = static_cast<int>(detector.pairs().size());
+    radius_mm = detector.options().neighbour_radius_mm;
     cutting::FrameFeatures frame;
     cutting::DetectionResult result;
     cut_points = 0;
@@ -136,8 +144,7 @@ int RunBenchDetection(int argc, char** argv) {
   const double median = Median(update_ms), p95 = Percentile(update_ms, 0.95),
                worst = *std::max_element(update_ms.begin(), update_ms.end());
   std::printf("cut detection: %d features, %d pairs (r_F = %.1f mm), %d frames x %d sequences\n",
-              static_cast<int>(field.p0.rows()), pairs, options.neighbour_radius_mm, frames,
-              repeats);
+              static_cast<int>(field.p0.rows()), pairs, radius_mm, frames, repeats);
   std::printf("  Update per frame      median %.4f ms   p95 %.4f ms   max %.4f ms\n", median, p95,
               worst);
   std::printf("  frames with insertion median %.4f ms   (%zu frames)\n", Median(insert_ms),

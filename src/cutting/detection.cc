@@ -22,6 +22,27 @@ double SquaredDistanceToSegment(const Eigen::Vector3d& a, const Eigen::Vector3d&
   return (a + s * ab - c).squaredNorm();
 }
 
+// Median over (at most kMaxSamples evenly strided) features of the distance to their k-th
+// nearest other feature; 0 when fewer than two features. O(#samples * #F) once per Initialize.
+double MedianKthNeighbourDistance(const RowMatX3d& points_mm, int k) {
+  constexpr int kMaxSamples = 1000;
+  const int n = static_cast<int>(points_mm.rows());
+  if (n < 2) return 0.0;
+  k = std::min(k, n - 1);
+  const int stride = (n + kMaxSamples - 1) / kMaxSamples;
+  std::vector<double> kth, distances(n - 1);
+  for (int i = 0; i < n; i += stride) {
+    int c = 0;
+    for (int j = 0; j < n; ++j)
+      if (j != i) distances[c++] = (points_mm.row(i) - points_mm.row(j)).squaredNorm();
+    std::nth_element(distances.begin(), distances.begin() + (k - 1), distances.end());
+    kth.push_back(distances[k - 1]);
+  }
+  const auto mid = kth.begin() + kth.size() / 2;
+  std::nth_element(kth.begin(), mid, kth.end());
+  return std::sqrt(*mid);
+}
+
 }  // namespace
 
 void CutDetectorOptions::Check() const {
@@ -32,6 +53,10 @@ void CutDetectorOptions::Check() const {
                     "must be > 0, got ", outlier_factor);
   ARREG_CHECK_INPUT(min_outliers >= 1, "", "cut_detector.min_outliers", "must be >= 1, got ",
                     min_outliers);
+  ARREG_CHECK_INPUT(std::isfinite(outlier_weight_cap) && outlier_weight_cap >= 1.0, "",
+                    "cut_detector.outlier_weight_cap", "must be >= 1, got ", outlier_weight_cap);
+  ARREG_CHECK_INPUT(neighbours_per_feature >= 0, "", "cut_detector.neighbours_per_feature",
+                    "must be >= 0 (0: use neighbour_radius_mm), got ", neighbours_per_feature);
   ARREG_CHECK_INPUT(positive(cut_point_radius_mm), "", "cut_detector.cut_point_radius_mm",
                     "must be > 0, got ", cut_point_radius_mm);
   ARREG_CHECK_INPUT(std::isfinite(min_outlier_measure_mm) && min_outlier_measure_mm >= 0.0, "",
@@ -47,7 +72,7 @@ void CutDetectorOptions::Check() const {
                     "must be >= 1, got ", max_cut_points_per_frame);
 }
 
-CutDetector::CutDetector(const CutDetectorOptions& options) : options_(options) {
+CutDetector::CutDetector(const CutDetectorOptions& options) : given_(options), options_(options) {
   options_.Check();
 }
 
@@ -58,6 +83,18 @@ void CutDetector::Initialize(const RowMatX3d& initial_positions_mm, const std::v
   ARREG_CHECK_INPUT(initial_positions_mm.allFinite(), "", "CutDetector::Initialize",
                     "initial positions must be finite");
   initial_mm_ = initial_positions_mm;
+  options_ = given_;
+  if (given_.neighbours_per_feature > 0) {
+    // The k-th neighbour itself must pass the strict test |p0_l - p0_m| < r_F.
+    const double radius_mm =
+        (1.0 + 1e-9) * MedianKthNeighbourDistance(initial_mm_, given_.neighbours_per_feature);
+    if (radius_mm > 0.0) {
+      const double scale = radius_mm / given_.neighbour_radius_mm;
+      options_.neighbour_radius_mm = radius_mm;
+      options_.cut_point_radius_mm *= scale;
+      options_.boundary_extension_mm *= scale;
+    }
+  }
   index_of_id_.clear();
   index_of_id_.reserve(2 * n);
   for (int i = 0; i < n; ++i) {
@@ -70,6 +107,7 @@ void CutDetector::Initialize(const RowMatX3d& initial_positions_mm, const std::v
   front_at_border_ = back_at_border_ = false;
   frame_ = 0;
   row_of_feature_.assign(n, -1);
+  cluster_count_.assign(n, 0);
   model_mm_.setZero(n, 3);
   target_mm_.setZero(n, 3);
 
@@ -143,6 +181,7 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   result->new_cut_points.clear();
   result->outliers.clear();
   result->pairs_removed_by_cut = 0;
+  result->lone_features = 0;
   result->pairs_removed_by_death = 0;
   result->segment_added = false;
   result->look_ahead_mm.reset();
@@ -159,6 +198,7 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   const int num_pairs = static_cast<int>(pairs_.size());
   result->pairs.assign(pairs_.begin(), pairs_.end());
   result->measure.resize(num_pairs);
+  mu1_.resize(num_pairs);
   const RowMatX3d& ratio_positions =
       options_.measure == CutMeasure::kModelRegularised ? model_mm_ : target_mm_;
   double sum = 0.0;
@@ -172,21 +212,17 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
     // Coincident initial features carry no length information; treat them as unstretched.
     const double mu2 = delta0 > 0.0 ? delta / delta0 : 1.0;
     const double mu = mu1 * mu2;
+    mu1_[k] = mu1;
     result->measure[k] = mu;
     sum += mu;
   }
   const double mean = num_pairs > 0 ? sum / num_pairs : 0.0;
   result->mean_measure = mean;
-  const double threshold =
-      std::max(options_.outlier_factor * mean, options_.min_outlier_measure_mm);
+  threshold_ = std::max(options_.outlier_factor * mean, options_.min_outlier_measure_mm);
+  const double threshold = threshold_;
   for (int k = 0; k < num_pairs; ++k) {
     if (result->measure[k] <= threshold) continue;
-    if (options_.require_opening) {
-      const int l = pairs_[k].first, m = pairs_[k].second;
-      const double image2 = (target_mm_.row(l) - target_mm_.row(m)).squaredNorm();
-      const double model2 = (model_mm_.row(l) - model_mm_.row(m)).squaredNorm();
-      if (image2 <= model2) continue;
-    }
+    if (options_.require_opening && !Opens(pairs_[k])) continue;
     result->outliers.push_back(k);
   }
 
@@ -194,10 +230,16 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   // pairs still present count (removed ones were pruned around earlier points).
   candidates_ = result->outliers;
   for (int inserted = 0; inserted < options_.max_cut_points_per_frame; ++inserted) {
-    if (static_cast<int>(candidates_.size()) < options_.min_outliers) break;
+    if (OutlierCount(candidates_, *result) < options_.min_outliers) break;
     if (options_.cluster_outliers) {
       SelectCluster(*result);
-      if (static_cast<int>(cluster_.size()) < options_.min_outliers) break;
+      while (options_.reject_lone_features &&
+             OutlierCount(cluster_, *result) >= options_.min_outliers &&
+             RemoveLoneFeature(*result)) {
+        ++result->lone_features;
+        SelectCluster(*result);
+      }
+      if (OutlierCount(cluster_, *result) < options_.min_outliers) break;
     } else {
       cluster_ = candidates_;
     }
@@ -297,6 +339,49 @@ void CutDetector::SelectCluster(const DetectionResult& result) {
   const Eigen::Vector3d centre = midpoint(best);
   for (int b : candidates_)
     if ((midpoint(b) - centre).squaredNorm() <= r2) cluster_.push_back(b);
+}
+
+double CutDetector::OutlierCount(const std::vector<int>& outliers,
+                                 const DetectionResult& result) const {
+  double count = 0.0;
+  for (int k : outliers)
+    count += std::min(result.measure[k] / threshold_, options_.outlier_weight_cap);
+  return count;
+}
+
+bool CutDetector::Opens(const FeaturePair& p) const {
+  return (target_mm_.row(p.first) - target_mm_.row(p.second)).squaredNorm() >
+         (model_mm_.row(p.first) - model_mm_.row(p.second)).squaredNorm();
+}
+
+bool CutDetector::RemoveLoneFeature(const DetectionResult& result) {
+  if (cluster_.size() < 2) return false;
+  int lone = -1, most = 0;
+  for (int k : cluster_)
+    for (int f : {result.pairs[k].first, result.pairs[k].second})
+      if (++cluster_count_[f] > most) {
+        most = cluster_count_[f];
+        lone = f;
+      }
+  for (int k : cluster_)
+    cluster_count_[result.pairs[k].first] = cluster_count_[result.pairs[k].second] = 0;
+  if (4 * most <= 3 * static_cast<int>(cluster_.size())) return false;
+  // The hub's own displacement error explains its pairs when its partners' are small (across
+  // a cut, the features on the other side are as far from their model points).
+  const auto error_mm = [&](int f) { return (model_mm_.row(f) - target_mm_.row(f)).norm(); };
+  double partners_mm = 0.0;
+  for (int k : cluster_) {
+    const FeaturePair& p = result.pairs[k];
+    if (p.first == lone || p.second == lone)
+      partners_mm += error_mm(p.first == lone ? p.second : p.first);
+  }
+  if (partners_mm / most >= 0.5 * error_mm(lone)) return false;
+  candidates_.erase(
+      std::remove_if(
+          candidates_.begin(), candidates_.end(),
+          [&](int k) { return result.pairs[k].first == lone || result.pairs[k].second == lone; }),
+      candidates_.end());
+  return true;
 }
 
 void CutDetector::RemovePairsNear(const Eigen::Vector3d& centre_mm, int* removed) {

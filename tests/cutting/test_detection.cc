@@ -21,7 +21,8 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 
 // 35 x 20 features, 4.8 mm apart, on the plane z = 0; the seam y = 0 lies between two rows.
-// 700 features and 8,828 pairs at r_F = 15 mm, the size of the thesis's experiments.
+// 700 features and 8,828 pairs at r_F = 15 mm, the size of the thesis's experiments; the default
+// r_F from the spacing (26 neighbours) is 3 spacings = 14.4 mm.
 struct FeatureGrid {
   RowMatX3d p0;
   std::vector<int> ids;
@@ -37,6 +38,18 @@ FeatureGrid MakeGrid(int nx = 35, int ny = 20, double spacing = 4.8) {
       g.ids.push_back(1000 + 7 * r);  // ids need not be 0..n-1
     }
   return g;
+}
+
+// The thesis's kidney 1 parameters: r_F = 15 mm, tau = 8, n = 8, r_pc = 7 mm, a plain count.
+CutDetectorOptions ThesisKidney1() {
+  CutDetectorOptions o;
+  o.neighbours_per_feature = 0;
+  o.neighbour_radius_mm = 15.0;
+  o.outlier_factor = 8.0;
+  o.min_outliers = 8;
+  o.cut_point_radius_mm = 7.0;
+  o.outlier_weight_cap = 1.0;
+  return o;
 }
 
 FrameFeatures MakeFrame(const FeatureGrid& g, const RowMatX3d& target, const RowMatX3d& model) {
@@ -82,6 +95,7 @@ struct SeamScenario {
 };
 
 struct SeamRun {
+  CutDetectorOptions resolved;  // the detector's options after Initialize (radii in use)
   std::vector<CutPoint> points;
   std::vector<double> tip_at_point;
   std::vector<Eigen::Vector3d> extended_initial;
@@ -92,9 +106,10 @@ struct SeamRun {
 SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOptions& options) {
   CutDetector detector(options);
   detector.Initialize(g.p0, g.ids);
+  SeamRun run;
+  run.resolved = detector.options();
   std::mt19937 rng(s.seed);
   std::normal_distribution<double> noise(0.0, 1.0);
-  SeamRun run;
   DetectionResult result;
   const int n = static_cast<int>(g.p0.rows());
   const Eigen::Vector2d normal = s.Normal();
@@ -125,7 +140,7 @@ SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOp
           (*result.look_ahead_mm - pl.back()).norm() < (*result.look_ahead_mm - pl.front()).norm();
       const Eigen::Vector3d end = at_back ? pl.back() : pl.front();
       const Eigen::Vector3d prev = at_back ? pl[pl.size() - 2] : pl[1];
-      EXPECT_NEAR((*result.look_ahead_mm - end).norm(), options.cut_point_radius_mm, 1e-9);
+      EXPECT_NEAR((*result.look_ahead_mm - end).norm(), run.resolved.cut_point_radius_mm, 1e-9);
       EXPECT_NEAR((*result.look_ahead_mm - end).normalized().dot((end - prev).normalized()), 1.0,
                   1e-12);
       ++run.look_aheads;
@@ -164,15 +179,96 @@ TEST(CutDetector, NeighbourGraphEqualsBruteForce) {
     p.row(i) << u(rng), u(rng), 0.25 * u(rng);
     ids.push_back(i);
   }
+  for (int neighbours : {26, 0}) {  // r_F from the spacing (default), r_F = 15 mm as given
+    CutDetectorOptions o;
+    o.neighbours_per_feature = neighbours;
+    CutDetector detector(o);
+    detector.Initialize(p, ids);
+    const double r = detector.options().neighbour_radius_mm;
+    if (neighbours == 0) {
+      EXPECT_EQ(r, 15.0);
+    }
+    std::set<std::pair<int, int>> expected, got;
+    for (int i = 0; i < 400; ++i)
+      for (int j = i + 1; j < 400; ++j)
+        if ((p.row(i) - p.row(j)).norm() < r) expected.insert({i, j});
+    for (const FeaturePair& q : detector.pairs()) got.insert({q.first, q.second});
+    EXPECT_EQ(got.size(), detector.pairs().size()) << "duplicate pairs";
+    EXPECT_EQ(got, expected);
+  }
+}
+
+// The default r_F is the median distance to the 26th nearest feature: on a square grid, 3
+// spacings for an interior feature (4 + 4 + 4 + 8 + 4 neighbours at squared distances 1, 2, 4,
+// 5, 8, then 4 more at 9). r_pc and the border extension keep their ratios to r_F (7/15, 15/15).
+TEST(CutDetector, NeighbourRadiusFollowsTheFeatureSpacing) {
+  for (double spacing : {2.0, 4.8, 9.6}) {
+    const FeatureGrid g = MakeGrid(35, 20, spacing);
+    CutDetector detector;
+    detector.Initialize(g.p0, g.ids);
+    const CutDetectorOptions& o = detector.options();
+    EXPECT_NEAR(o.neighbour_radius_mm, 3 * spacing, 1e-6 * spacing);
+    EXPECT_NEAR(o.cut_point_radius_mm, 7.0 / 15.0 * o.neighbour_radius_mm, 1e-9);
+    EXPECT_NEAR(o.boundary_extension_mm, o.neighbour_radius_mm, 1e-9);
+    // Interior features have 28 neighbours (the 4 at 3 spacings are included), border ones fewer.
+    const double mean_neighbours = 2.0 * detector.pairs().size() / detector.num_features();
+    EXPECT_GT(mean_neighbours, 22.0);
+    EXPECT_LE(mean_neighbours, 28.0);
+  }
+  // Uniform random features on a 100 x 100 mm sheet: the mean count is close to 26 too.
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> u(0.0, 100.0);
+  RowMatX3d p(600, 3);
+  std::vector<int> ids;
+  for (int i = 0; i < 600; ++i) {
+    p.row(i) << u(rng), u(rng), 0.0;
+    ids.push_back(i);
+  }
   CutDetector detector;
   detector.Initialize(p, ids);
-  std::set<std::pair<int, int>> expected, got;
-  for (int i = 0; i < 400; ++i)
-    for (int j = i + 1; j < 400; ++j)
-      if ((p.row(i) - p.row(j)).norm() < 15.0) expected.insert({i, j});
-  for (const FeaturePair& q : detector.pairs()) got.insert({q.first, q.second});
-  EXPECT_EQ(got.size(), detector.pairs().size()) << "duplicate pairs";
-  EXPECT_EQ(got, expected);
+  const double mean_neighbours = 2.0 * detector.pairs().size() / 600;
+  EXPECT_GT(mean_neighbours, 20.0);  // border features have fewer
+  EXPECT_LT(mean_neighbours, 28.0);
+  // The thesis's millimetre values stay reachable.
+  CutDetectorOptions mm;
+  mm.neighbours_per_feature = 0;
+  CutDetector fixed(mm);
+  fixed.Initialize(p, ids);
+  EXPECT_EQ(fixed.options().neighbour_radius_mm, 15.0);
+  EXPECT_EQ(fixed.options().cut_point_radius_mm, 7.0);
+}
+
+// The same cut filmed at twice the size (features twice as far apart, the opening, the noise and
+// the model's smoothing length doubled) gives the same cut points at twice the coordinates with
+// the default r_F; with r_F = 15 mm fixed, the detector sees a quarter of the pairs and another
+// polyline.
+TEST(CutDetector, DefaultRadiiMakeTheDetectionScaleFree) {
+  SeamScenario small;
+  SeamScenario large = small;
+  const double k = 2.0;
+  large.start_mm *= k;
+  large.tip_start_mm *= k;
+  large.speed_mm *= k;
+  large.tip_end_mm *= k;
+  large.max_opening_mm *= k;
+  large.stiffness_mm *= k;
+  large.noise_mm *= k;
+  const SeamRun a = RunSeam(MakeGrid(35, 20, 4.8), small, CutDetectorOptions());
+  const SeamRun b = RunSeam(MakeGrid(35, 20, k * 4.8), large, CutDetectorOptions());
+  ASSERT_GE(a.points.size(), 8u);
+  ASSERT_EQ(a.points.size(), b.points.size());
+  for (size_t i = 0; i < a.points.size(); ++i) {
+    EXPECT_LT((k * a.points[i].initial_position_mm - b.points[i].initial_position_mm).norm(), 1e-6)
+        << "cut point " << i;
+    EXPECT_EQ(a.points[i].num_outliers, b.points[i].num_outliers);
+  }
+  CutDetectorOptions mm;
+  mm.neighbours_per_feature = 0;
+  CutDetector fixed_small(mm), fixed_large(mm);
+  const FeatureGrid gs = MakeGrid(35, 20, 4.8), gl = MakeGrid(35, 20, k * 4.8);
+  fixed_small.Initialize(gs.p0, gs.ids);
+  fixed_large.Initialize(gl.p0, gl.ids);
+  EXPECT_LT(fixed_large.pairs().size() * 3, fixed_small.pairs().size());
 }
 
 TEST(CutDetector, GridHasThesisSize) {
@@ -249,36 +345,38 @@ TEST(CutDetector, MeasureMatchesDefinition) {
 
 TEST(CutDetector, SeamPulledApartGivesCutPointsAlongTheSeam) {
   const FeatureGrid g = MakeGrid();
-  const CutDetectorOptions options;  // thesis kidney 1 values
-  for (unsigned seed : {1u, 2u, 3u, 4u, 5u}) {
-    SCOPED_TRACE("seed " + std::to_string(seed));
-    SeamScenario scenario;
-    scenario.seed = seed;
-    const SeamRun run = RunSeam(g, scenario, options);
-    ASSERT_GE(run.points.size(), 8u) << "the 125 mm cut should give a polyline";
-    EXPECT_EQ(run.look_aheads, static_cast<int>(run.points.size()) - 1);
-    for (size_t i = 0; i < run.points.size(); ++i) {
-      const Eigen::Vector2d c = scenario.Coordinates(run.points[i].initial_position_mm);
-      EXPECT_LT(std::abs(c.y()), options.cut_point_radius_mm) << "cut point " << i;
-      EXPECT_NEAR(run.points[i].initial_position_mm.z(), 0.0, 1e-9);
-      // Never ahead of the real cut's tip (the detection may lag, not lead).
-      EXPECT_LT(c.x(), run.tip_at_point[i] + options.cut_point_radius_mm) << "cut point " << i;
-      EXPECT_GT(c.x(), -options.cut_point_radius_mm);
-      // In the current frame too (the halves are up to 10 mm apart there).
-      EXPECT_LT(std::abs(scenario.Coordinates(run.points[i].position_mm).y()),
-                options.cut_point_radius_mm);
+  for (bool thesis : {false, true})  // the defaults; thesis kidney 1 (mm radii, tau 8, count)
+    for (unsigned seed : {1u, 2u, 3u, 4u, 5u}) {
+      SCOPED_TRACE("seed " + std::to_string(seed) + (thesis ? ", kidney 1" : ", defaults"));
+      const CutDetectorOptions given = thesis ? ThesisKidney1() : CutDetectorOptions();
+      SeamScenario scenario;
+      scenario.seed = seed;
+      const SeamRun run = RunSeam(g, scenario, given);
+      const CutDetectorOptions& options = run.resolved;
+      ASSERT_GE(run.points.size(), 8u) << "the 125 mm cut should give a polyline";
+      EXPECT_EQ(run.look_aheads, static_cast<int>(run.points.size()) - 1);
+      for (size_t i = 0; i < run.points.size(); ++i) {
+        const Eigen::Vector2d c = scenario.Coordinates(run.points[i].initial_position_mm);
+        EXPECT_LT(std::abs(c.y()), options.cut_point_radius_mm) << "cut point " << i;
+        EXPECT_NEAR(run.points[i].initial_position_mm.z(), 0.0, 1e-9);
+        // Never ahead of the real cut's tip (the detection may lag, not lead).
+        EXPECT_LT(c.x(), run.tip_at_point[i] + options.cut_point_radius_mm) << "cut point " << i;
+        EXPECT_GT(c.x(), -options.cut_point_radius_mm);
+        // In the current frame too (the halves are up to 10 mm apart there).
+        EXPECT_LT(std::abs(scenario.Coordinates(run.points[i].position_mm).y()),
+                  options.cut_point_radius_mm);
+      }
+      // The polyline grows at the tip: its points are ordered along the seam...
+      for (size_t i = 1; i < run.points.size(); ++i)
+        EXPECT_GT(scenario.Coordinates(run.points[i].initial_position_mm).x(),
+                  scenario.Coordinates(run.points[i - 1].initial_position_mm).x());
+      // ...and follows the cut: the gap must stand out of the noise first, so the extended
+      // polyline lags the tip (by ~10 mm, 5 frames, here) but by less than 2 r_pc.
+      EXPECT_GT(scenario.Coordinates(run.extended_initial.back()).x(),
+                scenario.tip_end_mm - 2 * options.cut_point_radius_mm);
+      // ...and, starting at the border, is extended across it (boundary handling).
+      EXPECT_LT(run.extended_initial.front().x(), 0.0);
     }
-    // The polyline grows at the tip: its points are ordered along the seam...
-    for (size_t i = 1; i < run.points.size(); ++i)
-      EXPECT_GT(scenario.Coordinates(run.points[i].initial_position_mm).x(),
-                scenario.Coordinates(run.points[i - 1].initial_position_mm).x());
-    // ...and follows the cut: the gap must stand out of the noise first, so the extended
-    // polyline lags the tip (by ~10 mm, 5 frames, here) but by less than 2 r_pc.
-    EXPECT_GT(scenario.Coordinates(run.extended_initial.back()).x(),
-              scenario.tip_end_mm - 2 * options.cut_point_radius_mm);
-    // ...and, starting at the border, is extended across it (boundary handling).
-    EXPECT_LT(run.extended_initial.front().x(), 0.0);
-  }
 }
 
 TEST(CutDetector, ImageOnlyMeasureAlsoFindsTheSeam) {
@@ -292,7 +390,7 @@ TEST(CutDetector, ImageOnlyMeasureAlsoFindsTheSeam) {
     ASSERT_GE(run.points.size(), 8u);
     for (const CutPoint& p : run.points)
       EXPECT_LT(std::abs(scenario.Coordinates(p.initial_position_mm).y()),
-                options.cut_point_radius_mm);
+                run.resolved.cut_point_radius_mm);
   }
 }
 
@@ -334,6 +432,87 @@ TEST(CutDetector, OnlyOpeningPairsAreOutliers) {
   }
 }
 
+// One feature slides on the image (0.5 mm per frame, too slow for a jump filter) away from its
+// neighbours at -x while the model stays: every pair towards them opens, a star of outliers
+// around one feature. By default that is no cut; without the lone-feature test it is one.
+TEST(CutDetector, SlidingFeatureGivesNoCut) {
+  const FeatureGrid g = MakeGrid();
+  const int sliding = 10 * 35 + 17;  // mid-grid
+  for (bool reject : {true, false}) {
+    CutDetectorOptions o;
+    o.reject_lone_features = reject;
+    CutDetector detector(o);
+    detector.Initialize(g.p0, g.ids);
+    std::mt19937 rng(8);
+    std::normal_distribution<double> noise(0.0, 0.25);
+    DetectionResult r;
+    int cut_points = 0, lone = 0;
+    for (int k = 1; k <= 40; ++k) {
+      RowMatX3d target = g.p0;
+      for (int i = 0; i < target.rows(); ++i) {
+        target(i, 0) += noise(rng);
+        target(i, 1) += noise(rng);
+      }
+      target(sliding, 0) += 0.5 * k;
+      detector.Update(MakeFrame(g, target, g.p0), &r);
+      cut_points += static_cast<int>(r.new_cut_points.size());
+      lone += r.lone_features;
+    }
+    if (reject) {
+      EXPECT_EQ(cut_points, 0);
+      EXPECT_GT(lone, 0);
+    } else {
+      EXPECT_GE(cut_points, 1);
+      EXPECT_EQ(lone, 0);
+    }
+  }
+}
+
+// A cut crossed by only 6 pairs (3 features above it, 2 below), far above the threshold: with
+// outliers weighted by their excess (capped at 2) they make n = 8; with the thesis's plain
+// count (cap 1) they never do.
+TEST(CutDetector, FewStrongOutliersMakeACutPoint) {
+  FeatureGrid g = MakeGrid(20, 20, 4.8);  // background with 1 px noise, 150 mm away
+  for (int r = 0; r < g.p0.rows(); ++r) g.p0(r, 0) += 150.0;
+  const int background = static_cast<int>(g.p0.rows());
+  const double lips[5][2] = {{0, 2}, {4, 2}, {8, 2}, {2, -2}, {6, -2}};
+  g.p0.conservativeResize(background + 5, 3);
+  for (int i = 0; i < 5; ++i) {
+    g.p0.row(background + i) << lips[i][0], lips[i][1], 0.0;
+    g.ids.push_back(background + i);
+  }
+  for (double cap : {2.0, 1.0}) {
+    CutDetectorOptions o;
+    o.neighbours_per_feature = 0;  // r_F = 15 mm: all 6 pairs across, none to the background
+    o.outlier_weight_cap = cap;
+    CutDetector detector(o);
+    detector.Initialize(g.p0, g.ids);
+    std::mt19937 rng(2);
+    std::normal_distribution<double> noise(0.0, 0.25);
+    RowMatX3d target = g.p0;
+    for (int r = 0; r < background; ++r) {
+      target(r, 0) += noise(rng);
+      target(r, 1) += noise(rng);
+    }
+    for (int i = 0; i < 5; ++i) target(background + i, 1) += lips[i][1] > 0 ? 5.0 : -5.0;
+    DetectionResult r;
+    detector.Update(MakeFrame(g, target, g.p0), &r);
+    int across = 0;
+    for (int k : r.outliers) {
+      EXPECT_GE(r.pairs[k].first, background);
+      EXPECT_GT(r.measure[k], 2 * o.outlier_factor * r.mean_measure);
+      ++across;
+    }
+    EXPECT_EQ(across, 6);
+    if (cap > 1.0) {
+      ASSERT_EQ(r.new_cut_points.size(), 1u);
+      EXPECT_NEAR(r.new_cut_points[0].initial_position_mm.y(), 0.0, 1.0);
+    } else {
+      EXPECT_TRUE(r.new_cut_points.empty());
+    }
+  }
+}
+
 TEST(CutDetector, PairsCrossingTheCutPointSphereAreRemoved) {
   const FeatureGrid g = MakeGrid();
   CutDetectorOptions options;
@@ -352,7 +531,7 @@ TEST(CutDetector, PairsCrossingTheCutPointSphereAreRemoved) {
     for (const FeaturePair& q : detector.pairs()) {
       const Eigen::Vector3d a = g.p0.row(q.first), b = g.p0.row(q.second);
       const double s = std::clamp((c.position_mm - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
-      EXPECT_GE((a + s * (b - a) - c.position_mm).norm(), options.cut_point_radius_mm);
+      EXPECT_GE((a + s * (b - a) - c.position_mm).norm(), detector.options().cut_point_radius_mm);
     }
   EXPECT_EQ(static_cast<int>(detector.pairs().size()),
             static_cast<int>(result.pairs.size()) - result.pairs_removed_by_cut);

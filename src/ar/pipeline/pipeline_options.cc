@@ -123,6 +123,9 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   JsonObjectReader r(scene.cutting, scene.path, "cutting");
   r.Optional("enabled", &o->enabled);
   r.Optional("neighbour_radius_mm", &o->detector.neighbour_radius_mm);
+  r.Optional("neighbours_per_feature", &o->detector.neighbours_per_feature);
+  r.Optional("outlier_weight_cap", &o->detector.outlier_weight_cap);
+  r.Optional("reject_lone_features", &o->detector.reject_lone_features);
   r.Optional("outlier_factor", &o->detector.outlier_factor);
   r.Optional("min_outliers", &o->detector.min_outliers);
   r.Optional("cut_point_radius_mm", &o->detector.cut_point_radius_mm);
@@ -218,6 +221,9 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
   j["cutting"] = {
       {"enabled", o.cutting.enabled},
       {"neighbour_radius_mm", o.cutting.detector.neighbour_radius_mm},
+      {"neighbours_per_feature", o.cutting.detector.neighbours_per_feature},
+      {"outlier_weight_cap", o.cutting.detector.outlier_weight_cap},
+      {"reject_lone_features", o.cutting.detector.reject_lone_features},
       {"outlier_factor", o.cutting.detector.outlier_factor},
       {"min_outliers", o.cutting.detector.min_outliers},
       {"cut_point_radius_mm", o.cutting.detector.cut_point_radius_mm},
