@@ -14,13 +14,14 @@
 namespace arreg::render {
 namespace {
 
-RasterCamera TestCamera() {
+// width x height pixels, principal point at the image centre.
+RasterCamera TestCamera(int width = 64, int height = 48) {
   RasterCamera c;
-  c.width = 64;
-  c.height = 48;
+  c.width = width;
+  c.height = height;
   c.fx = c.fy = 100;
-  c.cx = 31.5;
-  c.cy = 23.5;
+  c.cx = 0.5 * (width - 1);
+  c.cy = 0.5 * (height - 1);
   return c;
 }
 
@@ -232,11 +233,7 @@ double ExactCoverage(const double px[3], const double py[3], int x, int y) {
 }
 
 TEST(CoverageLayer, TriangleCoverageMatchesTheAnalyticArea) {
-  RasterCamera camera = TestCamera();
-  camera.width = 128;
-  camera.height = 96;
-  camera.cx = 63.5;
-  camera.cy = 47.5;
+  const RasterCamera camera = TestCamera(128, 96);
   CoverageLayer layer(camera);
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> ux(5, 122), uy(5, 90);
@@ -308,11 +305,7 @@ TEST(CoverageLayer, MeshInteriorIsFullyCoveredWithoutCracks) {
 }
 
 TEST(CoverageLayer, ColourAndDepthArePerspectiveCorrectInsideTheTriangle) {
-  RasterCamera camera = TestCamera();
-  camera.width = 160;
-  camera.height = 120;
-  camera.cx = 79.5;
-  camera.cy = 59.5;
+  const RasterCamera camera = TestCamera(160, 120);
   // A triangle slanted in depth (z 40..160 mm) with one primary colour per corner.
   RowMatX3d v(3, 3);
   v << -30, -20, 40, 60, -10, 160, -5, 35, 90;

@@ -238,15 +238,21 @@ int64_t CoverageLayer::DrawTriangle(const Vertex v_in[3], const bool smooth_in[3
     opposite_inv_z[e] = static_cast<float>(inv_z[o[(e + 2) % 3]]);
     opposite_rgb[e] = v_in[o[(e + 2) % 3]].rgb;
   }
-  // Along a row the weights are linear in x, so inside the triangle the perspective numerators
-  // sum_e E_e / z_e and sum_e E_e rgb_e / z_e advance by constant steps.
-  double step_inv_depth = 0;
-  Eigen::Vector3d step_rgb = Eigen::Vector3d::Zero();
-  for (int e = 0; e < 3; ++e) {
-    const double s = static_cast<double>(step_x[e]) * opposite_inv_z[e];
-    step_inv_depth += s;
-    step_rgb += s * opposite_rgb[e].cast<double>();
-  }
+  // The perspective numerators sum_e w_e / z_e and sum_e w_e rgb_e / z_e for weights w. Along a
+  // row the weights are linear in x, so inside the triangle these advance by constant steps.
+  const auto perspective_sums = [&](const int64_t w[3], double* inv_depth_sum,
+                                    Eigen::Vector3d* rgb_sum) {
+    *inv_depth_sum = 0;
+    rgb_sum->setZero();
+    for (int e = 0; e < 3; ++e) {
+      const double wz = static_cast<double>(w[e]) * opposite_inv_z[e];
+      *inv_depth_sum += wz;
+      *rgb_sum += wz * opposite_rgb[e].cast<double>();
+    }
+  };
+  double step_inv_depth;
+  Eigen::Vector3d step_rgb;
+  perspective_sums(step_x, &step_inv_depth, &step_rgb);
   int64_t row_e[3];
   for (int e = 0; e < 3; ++e) {
     const int a = o[e], b = o[(e + 1) % 3];
@@ -329,13 +335,9 @@ int64_t CoverageLayer::DrawTriangle(const Vertex v_in[3], const bool smooth_in[3
         for (int e = 0; e < 3; ++e) e_at[e] += step_x[e];
       }
       if (in_lo <= in_hi) {
-        double inv_depth_sum = 0;
-        Eigen::Vector3d rgb_sum = Eigen::Vector3d::Zero();
-        for (int e = 0; e < 3; ++e) {
-          const double wz = static_cast<double>(e_at[e]) * opposite_inv_z[e];
-          inv_depth_sum += wz;
-          rgb_sum += wz * opposite_rgb[e].cast<double>();
-        }
+        double inv_depth_sum;
+        Eigen::Vector3d rgb_sum;
+        perspective_sums(e_at, &inv_depth_sum, &rgb_sum);
         for (int64_t x = in_lo; x <= in_hi; ++x) {
           const double to_rgb = 1.0 / inv_depth_sum;
           merge(row[x], opacity, static_cast<float>(inv_depth_sum) * inv_area,
