@@ -485,6 +485,7 @@ TEST(CutDetector, FewStrongOutliersMakeACutPoint) {
     CutDetectorOptions o;
     o.neighbours_per_feature = 0;  // r_F = 15 mm: all 6 pairs across, none to the background
     o.outlier_weight_cap = cap;
+    o.min_outliers = 8;  // kidney 1
     CutDetector detector(o);
     detector.Initialize(g.p0, g.ids);
     std::mt19937 rng(2);

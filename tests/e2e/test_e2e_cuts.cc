@@ -50,7 +50,7 @@ struct CutCase {
   int min_cuts_applied;           // cut events applied with topology updates
   double min_dice_with_topology;  // final Dice with topology updates
   double min_dice_gain;           // final Dice with minus without topology
-  bool hausdorff_not_higher;  // kidney: surface and internal Hausdorff means not higher with cuts
+  bool hausdorff_lower;           // kidney: surface and internal Hausdorff means lower with cuts
 };
 
 void PrintTo(const CutCase& c, std::ostream* os) { *os << c.scenario; }
@@ -89,27 +89,28 @@ TEST_P(EndToEndCut, RegistrationWithAndWithoutTopology) {
   EXPECT_EQ(without.summary.cut_events, 0);
   EXPECT_GE(a.dice_final, c.min_dice_with_topology);
   EXPECT_GE(a.dice_final - b.dice_final, c.min_dice_gain);
-  if (c.hausdorff_not_higher) {
+  if (c.hausdorff_lower) {
     ASSERT_TRUE(a.internal.has_value() && b.internal.has_value());
-    EXPECT_LE(a.internal->mean_model_to_gt + a.internal->mean_gt_to_model,
+    EXPECT_LT(a.internal->mean_model_to_gt + a.internal->mean_gt_to_model,
               b.internal->mean_model_to_gt + b.internal->mean_gt_to_model);
-    EXPECT_LE(a.surface->mean_model_to_gt + a.surface->mean_gt_to_model,
+    EXPECT_LT(a.surface->mean_model_to_gt + a.surface->mean_gt_to_model,
               b.surface->mean_model_to_gt + b.surface->mean_gt_to_model);
   }
 }
 
 // Thresholds: what holds here (72 frames, seed 1) and at 120 frames on seeds 1 and 2, with the
 // default detector parameters on every scene (docs/detection.md, "End-to-end results"). Measured
-// here: kidney-cut 3 cuts, 0.917 vs 0.905 without, Hausdorff means lower; band-cut-v no cut,
-// 0.851 both; band-cut-s 2 cuts, 0.848 vs 0.829; band-precut-side 3 cuts, 0.914 vs 0.919;
-// band-precut-middle 1 cut, 0.956 vs 0.957. At 120 frames kidney-cut seed 2 and band-cut-v (both
-// seeds) get no cut. Issue 7 asks for Dice >= 0.95 and gains of +0.15 / +0.06: not met.
+// here: kidney-cut 2 cuts, 0.953 vs 0.905 without, Hausdorff means lower; band-cut-v no cut,
+// 0.851 both (one cut at 120 frames, +0.038 / +0.034); band-cut-s 2 cuts, 0.848 vs 0.829;
+// band-precut-side 2 cuts, 0.916 vs 0.919; band-precut-middle 1 cut, 0.957 vs 0.957 (at 120
+// frames -0.006 / -0.024: cut points at the stem). Issue 7 asks for Dice >= 0.95 and gains of
+// +0.15 / +0.06: not met.
 INSTANTIATE_TEST_SUITE_P(Scenarios, EndToEndCut,
-                         ::testing::Values(CutCase{"kidney-cut", 72, 0, 0.91, 0.0, true},
+                         ::testing::Values(CutCase{"kidney-cut", 72, 1, 0.92, 0.005, true},
                                            CutCase{"band-cut-v", 72, 0, 0.84, 0.0, false},
-                                           CutCase{"band-cut-s", 72, 1, 0.83, 0.005, false},
-                                           CutCase{"band-precut-side", 72, 1, 0.91, -0.01, false},
-                                           CutCase{"band-precut-middle", 72, 0, 0.95, -0.01,
+                                           CutCase{"band-cut-s", 72, 1, 0.84, 0.015, false},
+                                           CutCase{"band-precut-side", 72, 1, 0.91, -0.005, false},
+                                           CutCase{"band-precut-middle", 72, 1, 0.93, -0.03,
                                                    false}),
                          [](const ::testing::TestParamInfo<CutCase>& info) {
                            std::string name = info.param.scenario;
