@@ -1037,6 +1037,25 @@ CutSummary CutEvent::Run(CutChange* change) {
   for (int t : candidates)
     for (int v : m_.tets_[t])
       if (!marked_[v] && DistanceToSurface(m_.current_[v], nullptr) <= on_tol) marked_[v] = 1;
+  // An element whose four vertices all count as on S lies inside the tolerance slab: S runs
+  // through it, but Separate never unsews a face of such an element, so it would bridge the
+  // two sides (a spanning S leaving the body in one piece). Its vertex farthest from S is
+  // then not taken as on S (the exact test, tolerance 0, never marks a whole element).
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (int t : candidates) {
+      const Tet& q = m_.tets_[t];
+      if (!(marked_[q[0]] && marked_[q[1]] && marked_[q[2]] && marked_[q[3]])) continue;
+      int farthest = q[0];
+      double farthest_mm = -1.0;
+      for (int v : q) {
+        const double d = DistanceToSurface(m_.current_[v], nullptr);
+        if (d > farthest_mm) farthest_mm = d, farthest = v;
+      }
+      marked_[farthest] = 0;
+      changed = true;
+    }
+  }
 
   ComputeCrossings(candidates);
   Snap();

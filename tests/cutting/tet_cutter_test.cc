@@ -395,5 +395,27 @@ TEST(TetCutter, LiverRandomSurfacesKeepInvariants) {
   EXPECT_LT(rejected, 8);
 }
 
+// With an on-surface tolerance wider than a layer of thin elements, all four vertices of the
+// elements between two vertex layers count as on S. A plane across the whole block must still
+// separate it, and no element may straddle the plane by more than the tolerance.
+TEST(TetCutter, ToleranceSlabOfThinElementsStillSeparates) {
+  // Cells 4 mm thick along x, 10 mm across: vertex layers at x = 0, 4, ..., 40.
+  CuttableMesh m(
+      MakeBoxTetMesh(Eigen::Vector3d(40, 20, 20), Eigen::Vector3i(10, 2, 2), BoxTetSplit::kSix));
+  const double v0 = CheckMeshInvariants(m.RestMesh()).total_volume;
+  CutOptions opt;
+  opt.snap_epsilon = 0.0;
+  // 2.5 mm: the layers x = 20 (2.1 mm from the plane) and x = 24 (1.9 mm) are both within.
+  opt.on_surface_tolerance = 2.5 / m.mean_rest_edge_length();
+  const CutSummary s = m.Cut(MakePlaneSurface({22.1, 10, 10}, {1, 0, 0}, 60, 60, {0, 1, 0}), opt);
+  ASSERT_EQ(s.status, CutStatus::kCut) << s.message;
+  const TetMesh rest = m.RestMesh();
+  const MeshInvariants inv = CheckMeshInvariants(rest);
+  ASSERT_TRUE(inv.ok()) << inv.ToString();
+  EXPECT_NEAR(inv.total_volume, v0, 1e-9 * v0);
+  EXPECT_EQ(NumPieces(rest), 2);
+  EXPECT_TRUE(ElementsOnOneSide(rest, {22.1, 10, 10}, {1, 0, 0}, 2.5));
+}
+
 }  // namespace
 }  // namespace arreg::cutting
