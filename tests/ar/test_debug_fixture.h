@@ -71,6 +71,10 @@ inline std::vector<cutting::DetectionResult> RecordRun(const std::string& run_di
   Scene scene;
   scene.camera = camera;
   pipeline::PipelineOptions options;
+  // The fixture's features are laid out for r_F = 15 mm (a few neighbours each), not the
+  // default radius from the spacing of a dense field.
+  options.cutting.detector.neighbours_per_feature = 0;
+  options.cutting.detector.neighbour_radius_mm = 15.0;
   options.cutting.detector.outlier_factor = 4.0;
   options.cutting.detector.min_outliers = 4;
   const std::vector<Eigen::Vector3d> p0 = InitialPoints();
@@ -124,6 +128,7 @@ inline std::vector<cutting::DetectionResult> RecordRun(const std::string& run_di
   start.height = kHeight;
   start.features_detected = nf;
   start.features_attached = static_cast<int>(detector_ids.size());
+  start.detector = &detector.options();
   recorder.OnStart(start);
 
   std::vector<cutting::DetectionResult> results;

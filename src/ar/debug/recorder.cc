@@ -319,7 +319,11 @@ DebugRecorder::DebugRecorder(const DebugRecorderOptions& options) : options_(opt
 void DebugRecorder::OnStart(const pipeline::RunStart& start) {
   ARREG_CHECK_INPUT(start.scene != nullptr, "", "debug recorder", "OnStart needs the scene");
   camera_ = start.scene->camera;
-  if (start.options) detector_ = start.options->cutting.detector;
+  if (start.detector) {
+    detector_ = *start.detector;
+  } else if (start.options) {
+    detector_ = start.options->cutting.detector;
+  }
   start_json_ = {{"expected_frames", start.expected_frames},
                  {"fps", start.fps},
                  {"width", start.width},

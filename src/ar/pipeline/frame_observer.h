@@ -97,6 +97,9 @@ struct RunStart {
   int width = 0, height = 0;
   int model_vertices = 0, model_tetrahedra = 0;
   int features_detected = 0, features_attached = 0;
+  // The cut detector's options in use: radii resolved from the features at Initialize. Null
+  // without cut handling.
+  const cutting::CutDetectorOptions* detector = nullptr;
 };
 
 struct RunSummary {

@@ -302,6 +302,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   start.model_tetrahedra = state.num_tetrahedra();
   start.features_detected = nf;
   start.features_attached = attached;
+  if (detector) start.detector = &detector->options();
   for (FrameObserver* ob : impl_->observers) ob->OnStart(start);
   ARREG_LOG_DEBUG("run: ", nf, " features detected in the model silhouette, ", attached,
                   " attached to the surface");
