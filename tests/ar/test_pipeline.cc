@@ -302,5 +302,29 @@ TEST(Overlay, DrawsOnlyOverTheOrganAndBlendsByOpacity) {
   }
 }
 
+// Scene keys reach the options and are written back to run.json; out-of-range values name the key.
+TEST(PipelineOptions, TrackingAndDetectorKeysRoundTrip) {
+  Scene scene;
+  scene.path = "scene.json";
+  scene.tracking = {{"appearance_check", true}, {"appearance_min_correlation", 0.7}};
+  scene.cutting = {{"neighbours_per_feature", 12}, {"outlier_weight_cap", 1.5}};
+  const PipelineOptions o = ReadPipelineOptions(scene);
+  EXPECT_TRUE(o.tracking.appearance.enabled);
+  EXPECT_DOUBLE_EQ(o.tracking.appearance.min_correlation, 0.7);
+  EXPECT_EQ(o.cutting.detector.neighbours_per_feature, 12);
+  const nlohmann::json j = PipelineOptionsToJson(o);
+  EXPECT_EQ(j["tracking"]["appearance_check"], true);
+  EXPECT_DOUBLE_EQ(j["tracking"]["appearance_min_correlation"].get<double>(), 0.7);
+  EXPECT_EQ(j["cutting"]["neighbours_per_feature"], 12);
+
+  scene.tracking = {{"appearance_min_correlation", 1.5}};
+  try {
+    ReadPipelineOptions(scene);
+    FAIL() << "a correlation above 1 was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("min_correlation"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace arreg::pipeline

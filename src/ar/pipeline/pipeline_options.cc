@@ -90,6 +90,8 @@ void ReadTracking(const Scene& scene, FeatureTrackerOptions* o) {
   r.Optional("outlier_ratio", &o->outliers.ratio);
   r.Optional("outlier_slack_px", &o->outliers.slack_px);
   r.Optional("specular_filter", &o->specular.enabled);
+  r.Optional("appearance_check", &o->appearance.enabled);
+  r.Optional("appearance_min_correlation", &o->appearance.min_correlation);
   r.Finish();
 }
 
@@ -203,7 +205,9 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                    {"outlier_filter", o.tracking.outliers.enabled},
                    {"outlier_ratio", o.tracking.outliers.ratio},
                    {"outlier_slack_px", o.tracking.outliers.slack_px},
-                   {"specular_filter", o.tracking.specular.enabled}};
+                   {"specular_filter", o.tracking.specular.enabled},
+                   {"appearance_check", o.tracking.appearance.enabled},
+                   {"appearance_min_correlation", o.tracking.appearance.min_correlation}};
   j["lifting"] = {
       {"target", o.lifting.target == lift::LiftTarget::kPlane ? "plane" : "surface"},
       {"surface_update", o.lifting.surface_update == lift::SurfaceUpdate::kRayCastWithFallback
