@@ -30,6 +30,9 @@ int RunSynth(int argc, char** argv) {
   parser.AddDouble("amplitude", &o.amplitude, "A",
                    "scales the grip motions: manipulation speed (and stretch) at fixed frames, "
                    "in (0, 1.5]");
+  parser.AddDouble("zoom", &o.zoom, "Z",
+                   "focal length relative to the scenario's 60-degree view, in [0.5, 4] (2: the "
+                   "organ covers 4x the pixels, parts may leave the image)");
   parser.AddInt("gt-every", &o.surface_every_k, "K", "write gt surfaces every K-th frame");
   parser.AddDouble("cell", &o.fine_cell_mm, "MM", "band truth mesh spacing in mm");
   parser.AddDouble("kidney-cell", &o.kidney_cell_mm, "MM", "kidney truth mesh size in mm");

@@ -35,6 +35,30 @@ LabeledTetMesh SmallBox(const Eigen::Vector3d& size, double cell) {
   return MeshBoxUnion({Eigen::AlignedBox3d(Eigen::Vector3d::Zero(), size)}, o);
 }
 
+// --zoom scales the focal length from the same camera pose; out-of-range values name the field.
+TEST(Scenarios, ZoomScalesTheFocalLengthFromTheSamePose) {
+  ScenarioOptions o;
+  const Scenario base = BuildScenario("band-stretch", o);
+  o.zoom = 2.0;
+  const Scenario zoomed = BuildScenario("band-stretch", o);
+  EXPECT_NEAR(zoomed.camera.fx, 2.0 * base.camera.fx, 1e-9 * base.camera.fx);
+  EXPECT_NEAR(zoomed.camera.fy, 2.0 * base.camera.fy, 1e-9 * base.camera.fy);
+  EXPECT_DOUBLE_EQ(zoomed.camera.cx, base.camera.cx);
+  EXPECT_TRUE(zoomed.camera.camera_from_world.isApprox(base.camera.camera_from_world, 1e-12));
+  // A point on the optical axis stays put; one off the axis moves twice as far from the centre.
+  const Eigen::Vector3d p(20, 60, 4);
+  const Eigen::Vector2d c(base.camera.cx, base.camera.cy);
+  EXPECT_NEAR((zoomed.camera.Project(p) - c).norm(), 2.0 * (base.camera.Project(p) - c).norm(),
+              1e-6);
+  o.zoom = 5.0;
+  try {
+    BuildScenario("band-stretch", o);
+    FAIL() << "zoom 5 was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("zoom"), std::string::npos) << e.what();
+  }
+}
+
 TEST(NeoHookean, GradientAndHessianMatchFiniteDifferences) {
   const LabeledTetMesh box = SmallBox({10, 10, 10}, 5);
   NeoHookeanMaterial m;

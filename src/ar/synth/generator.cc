@@ -167,6 +167,7 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
   scenario_options.width = options.width;
   scenario_options.height = options.height;
   scenario_options.amplitude = options.amplitude;
+  scenario_options.zoom = options.zoom;
   scenario_options.fine_cell_mm = options.fine_cell_mm;
   scenario_options.kidney_cell_mm = options.kidney_cell_mm;
   Scenario s = BuildScenario(options.scenario, scenario_options);
@@ -407,6 +408,7 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
        {"version", kVersion},
        {"generator",
         {{"amplitude", options.amplitude},
+         {"zoom", options.zoom},
          {"nominal_stretch", s.nominal_stretch},
          {"fine_cell_mm", options.fine_cell_mm},
          {"kidney_cell_mm", options.kidney_cell_mm},

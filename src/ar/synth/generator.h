@@ -19,7 +19,8 @@ struct SynthOptions {
   double fps = 25.0;                      // video frame rate, default 25
   int surface_every_k = 1;  // gt/surface and gt/internal every k-th frame (and the last), default 1
   double amplitude =
-      1.0;  // scales the grip motions (manipulation speed at fixed frames), default 1
+      1.0;            // scales the grip motions (manipulation speed at fixed frames), default 1
+  double zoom = 1.0;  // focal length relative to the scenario's 60-degree view, default 1
   double fine_cell_mm = 5.0;    // band truth mesh spacing (mm), default 5
   double kidney_cell_mm = 2.6;  // kidney truth mesh size (mm), default 2.6
   double noise_sigma = 2.0;     // Gaussian sensor noise (8-bit grey levels), default 2

@@ -27,6 +27,7 @@ void ScenarioOptions::Check() const {
                     "must be in [1, 6] mm, got ", kidney_cell_mm);
   ARREG_CHECK_INPUT(amplitude > 0 && amplitude <= 1.5, "", "amplitude", "must be in (0, 1.5], got ",
                     amplitude);
+  ARREG_CHECK_INPUT(zoom >= 0.5 && zoom <= 4, "", "zoom", "must be in [0.5, 4], got ", zoom);
   ARREG_CHECK_INPUT(width >= 32 && height >= 32 && width <= 4096 && height <= 4096, "", "size",
                     "image size must be within 32..4096 px, got ", width, "x", height);
 }
@@ -60,7 +61,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 PinholeCamera MakeCamera(const ScenarioOptions& o, const Eigen::Vector3d& eye,
                          const Eigen::Vector3d& target, const Eigen::Vector3d& up) {
-  PinholeCamera camera = PinholeCamera::FromFieldOfView(o.width, o.height, 60.0);
+  const double fov_x_deg = 2 * std::atan(std::tan(M_PI / 6) / o.zoom) * 180 / M_PI;
+  PinholeCamera camera = PinholeCamera::FromFieldOfView(o.width, o.height, fov_x_deg);
   camera.LookAt(eye, target, up);
   return camera;
 }

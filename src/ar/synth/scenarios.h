@@ -42,6 +42,9 @@ struct ScenarioOptions {
   double kidney_cell_mm = 2.6;  // circumradius bound of the kidney truth mesh (mm), default 2.6
   double amplitude = 1.0;  // scales every grip motion (1 = the scenario's nominal speed/stretch)
   int width = 640, height = 512;  // image size (px)
+  // Focal length relative to the scenarios' 60-degree horizontal field of view, from the same
+  // camera position (2 = twice the focal length, the organ covers 4x the pixels). Default 1.
+  double zoom = 1.0;
   void Check() const;
 };
 
