@@ -198,7 +198,6 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   const int num_pairs = static_cast<int>(pairs_.size());
   result->pairs.assign(pairs_.begin(), pairs_.end());
   result->measure.resize(num_pairs);
-  mu1_.resize(num_pairs);
   const RowMatX3d& ratio_positions =
       options_.measure == CutMeasure::kModelRegularised ? model_mm_ : target_mm_;
   double sum = 0.0;
@@ -212,16 +211,14 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
     // Coincident initial features carry no length information; treat them as unstretched.
     const double mu2 = delta0 > 0.0 ? delta / delta0 : 1.0;
     const double mu = mu1 * mu2;
-    mu1_[k] = mu1;
     result->measure[k] = mu;
     sum += mu;
   }
   const double mean = num_pairs > 0 ? sum / num_pairs : 0.0;
   result->mean_measure = mean;
   threshold_ = std::max(options_.outlier_factor * mean, options_.min_outlier_measure_mm);
-  const double threshold = threshold_;
   for (int k = 0; k < num_pairs; ++k) {
-    if (result->measure[k] <= threshold) continue;
+    if (result->measure[k] <= threshold_) continue;
     if (options_.require_opening && !Opens(pairs_[k])) continue;
     result->outliers.push_back(k);
   }

@@ -215,7 +215,6 @@ class CutDetector {
   std::vector<int> candidates_;
   std::vector<int> cluster_;
   std::vector<int> cluster_count_;  // per feature: pairs of cluster_ it is in (0 between uses)
-  std::vector<double> mu1_;         // per pair of this frame: mu1 [mm]
 };
 
 }  // namespace arreg::cutting

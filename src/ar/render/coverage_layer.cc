@@ -330,10 +330,13 @@ int64_t CoverageLayer::DrawTriangle(const Vertex v_in[3], const bool smooth_in[3
       row_end_[y] = std::max(row_end_[y], static_cast<int>(hi) + 1);
       int64_t e_at[3];
       for (int e = 0; e < 3; ++e) e_at[e] = row_e[e] + step_x[e] * (lo - x0);
-      for (int64_t x = lo; x < in_lo; ++x) {
-        written += edge_pixel(row[x], e_at);
-        for (int e = 0; e < 3; ++e) e_at[e] += step_x[e];
-      }
+      const auto edge_run = [&](int64_t from, int64_t to) {  // columns [from, to)
+        for (int64_t x = from; x < to; ++x) {
+          written += edge_pixel(row[x], e_at);
+          for (int e = 0; e < 3; ++e) e_at[e] += step_x[e];
+        }
+      };
+      edge_run(lo, in_lo);
       if (in_lo <= in_hi) {
         double inv_depth_sum;
         Eigen::Vector3d rgb_sum;
@@ -349,10 +352,7 @@ int64_t CoverageLayer::DrawTriangle(const Vertex v_in[3], const bool smooth_in[3
         written += in_hi - in_lo + 1;
         for (int e = 0; e < 3; ++e) e_at[e] += step_x[e] * (in_hi - in_lo + 1);
       }
-      for (int64_t x = std::max(lo, in_hi + 1); x <= hi; ++x) {
-        written += edge_pixel(row[x], e_at);
-        for (int e = 0; e < 3; ++e) e_at[e] += step_x[e];
-      }
+      edge_run(std::max(lo, in_hi + 1), hi + 1);
     }
     for (int e = 0; e < 3; ++e) row_e[e] += step_y[e];
   }
