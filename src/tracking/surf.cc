@@ -154,26 +154,41 @@ void HessianRow(const HessianBoxes& h, const uint32_t* row, int step, int x_begi
 
 }  // namespace
 
-void SurfDetector::BuildLayer(Layer* layer) const {
+void SurfDetector::BuildLayer(Layer* layer, const RowSpans* spans) const {
   const int L = layer->filter_size, step = layer->step;
   const int border = (L - 1) / 2;
   const int stride = cols_ + 1;
   layer->rows = (rows_ + step - 1) / step;
   layer->cols = (cols_ + step - 1) / step;
-  layer->response.assign(static_cast<size_t>(layer->rows) * layer->cols, 0.f);
+  const size_t size = static_cast<size_t>(layer->rows) * layer->cols;
+  if (spans == nullptr)
+    layer->response.assign(size, 0.f);
+  else
+    layer->response.resize(size);
   const HessianBoxes boxes(stride, L);
   // Rows/columns (in response samples) where the whole filter fits.
   const int y_begin = (border + step - 1) / step, x_begin = (border + step - 1) / step;
   const int y_end = std::min(layer->rows, (rows_ - 1 - border) / step + 1);
   const int x_end = std::min(layer->cols, (cols_ - 1 - border) / step + 1);
   const uint32_t* I = integral_.data();
-  for (int y = y_begin; y < y_end; ++y) {
+  auto row_of = [&](int y, int x0, int x1) {
     float* out = &layer->response[static_cast<size_t>(y) * layer->cols];
+    if (spans != nullptr) std::fill(out + x0, out + x1, 0.f);
+    if (y < y_begin || y >= y_end) return;
+    x0 = std::max(x0, x_begin);
+    x1 = std::min(x1, x_end);
+    if (x1 <= x0) return;
     const uint32_t* row = I + static_cast<size_t>(y) * step * stride;
     if (step == 1)
-      HessianRow<1>(boxes, row, step, x_begin, x_end, out);
+      HessianRow<1>(boxes, row, step, x0, x1, out);
     else
-      HessianRow<0>(boxes, row, step, x_begin, x_end, out);
+      HessianRow<0>(boxes, row, step, x0, x1, out);
+  };
+  if (spans == nullptr) {
+    for (int y = y_begin; y < y_end; ++y) row_of(y, x_begin, x_end);
+  } else {
+    for (int y = 0; y < layer->rows; ++y)
+      for (const auto& [x0, x1] : (*spans)[y]) row_of(y, x0, x1);
   }
 }
 
@@ -185,28 +200,88 @@ int8_t SurfDetector::LaplacianSign(const Layer& layer, int y, int x) const {
   return boxes.Dxx(p) + boxes.Dyy(p) >= 0 ? 1 : -1;
 }
 
+namespace {
+
+// Per row of a rows x cols sample grid, the column intervals covered by
+// `boxes` (sample coordinates, clipped to the grid), merged where they overlap or touch.
+void SpansOfBoxes(const std::vector<cv::Rect>& boxes, int rows, int cols,
+                  std::vector<std::vector<std::pair<int, int>>>* spans) {
+  spans->resize(rows);
+  for (auto& row : *spans) row.clear();
+  const cv::Rect grid(0, 0, cols, rows);
+  for (const cv::Rect& box : boxes) {
+    const cv::Rect b = box & grid;
+    for (int y = b.y; y < b.br().y; ++y) (*spans)[y].emplace_back(b.x, b.br().x);
+  }
+  for (auto& row : *spans) {
+    if (row.size() < 2) continue;
+    std::sort(row.begin(), row.end());
+    size_t kept = 0;
+    for (size_t k = 1; k < row.size(); ++k) {
+      if (row[k].first <= row[kept].second)
+        row[kept].second = std::max(row[kept].second, row[k].second);
+      else
+        row[++kept] = row[k];
+    }
+    row.resize(kept + 1);
+  }
+}
+
+}  // namespace
+
 void SurfDetector::Detect(const cv::Mat& mask, std::vector<SurfKeypoint>* keypoints) {
+  DetectIn(mask, nullptr, 0.f, keypoints);
+}
+
+void SurfDetector::DetectNear(const cv::Mat& mask, const std::vector<cv::Point2f>& centres,
+                              float radius_px, std::vector<SurfKeypoint>* keypoints) {
+  ARREG_CHECK_INPUT(radius_px >= 0 && std::isfinite(radius_px), "", "SURF DetectNear",
+                    "radius must be >= 0, got ", radius_px);
+  DetectIn(mask, &centres, radius_px, keypoints);
+}
+
+void SurfDetector::DetectIn(const cv::Mat& mask, const std::vector<cv::Point2f>* centres,
+                            float radius_px, std::vector<SurfKeypoint>* keypoints) {
   ARREG_ASSERT(keypoints != nullptr, "");
   ARREG_CHECK_INPUT(rows_ > 0, "", "SURF", "Detect() before SetImage()");
   ARREG_CHECK_INPUT(
       mask.empty() || (mask.type() == CV_8UC1 && mask.rows == rows_ && mask.cols == cols_), "",
       "SURF mask", "expected an empty mask or CV_8UC1 of ", cols_, "x", rows_);
   keypoints->clear();
+  if (centres != nullptr && centres->empty()) return;
   const int num_layers = options_.intervals + 2;
   octaves_.resize(options_.octaves);
   const float threshold = static_cast<float>(options_.hessian_threshold);
+  // Near centres: maxima are looked for on `maxima` and responses computed on
+  // `responses` (the same samples and their 3 x 3 neighbours).
+  RowSpans maxima, responses;
+  std::vector<cv::Rect> boxes;
   for (int o = 0; o < options_.octaves; ++o) {
     const int step = options_.initial_sample_step << o;
     // An octave whose largest filter does not fit the image gives nothing.
     if (FilterSize(o, num_layers - 1) >= std::min(rows_, cols_)) break;
+    const int rows = (rows_ + step - 1) / step, cols = (cols_ + step - 1) / step;
+    if (centres != nullptr) {
+      // A point interpolated from sample x lies within half a step of x * step.
+      boxes.clear();
+      for (const cv::Point2f& c : *centres) {
+        const int x0 = static_cast<int>(std::floor((c.x - radius_px) / step - 0.5f));
+        const int x1 = static_cast<int>(std::ceil((c.x + radius_px) / step + 0.5f));
+        const int y0 = static_cast<int>(std::floor((c.y - radius_px) / step - 0.5f));
+        const int y1 = static_cast<int>(std::ceil((c.y + radius_px) / step + 0.5f));
+        boxes.emplace_back(x0, y0, x1 - x0 + 1, y1 - y0 + 1);
+      }
+      SpansOfBoxes(boxes, rows, cols, &maxima);
+      for (cv::Rect& b : boxes) b = cv::Rect(b.x - 1, b.y - 1, b.width + 2, b.height + 2);
+      SpansOfBoxes(boxes, rows, cols, &responses);
+    }
     std::vector<Layer>& layers = octaves_[o];
     layers.resize(num_layers);
     for (int i = 0; i < num_layers; ++i) {
       layers[i].filter_size = FilterSize(o, i);
       layers[i].step = step;
-      BuildLayer(&layers[i]);
+      BuildLayer(&layers[i], centres != nullptr ? &responses : nullptr);
     }
-    const int rows = layers[0].rows, cols = layers[0].cols;
     for (int i = 1; i + 1 < num_layers; ++i) {
       // The largest neighbouring filter must fit around the sample and its neighbours.
       const int border = (layers[i + 1].filter_size - 1) / 2;
@@ -214,57 +289,71 @@ void SurfDetector::Detect(const cv::Mat& mask, std::vector<SurfKeypoint>* keypoi
       const float* below = layers[i - 1].response.data();
       const float* here = layers[i].response.data();
       const float* above = layers[i + 1].response.data();
+      auto consider = [&](int y, int x) {
+        const int k = y * cols + x;
+        const float v = here[k];
+        if (v <= threshold) return;
+        // 3x3x3 non-maximum suppression.
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int n = k + dy * cols + dx;
+            if (below[n] >= v || above[n] >= v || (n != k && here[n] >= v)) return;
+          }
+        if (!mask.empty() && mask.at<uint8_t>(y * step, x * step) == 0) return;
+        // Sub-pixel / sub-scale: Newton step on the quadratic fit (x, y, scale).
+        const float gx = 0.5f * (here[k + 1] - here[k - 1]);
+        const float gy = 0.5f * (here[k + cols] - here[k - cols]);
+        const float gs = 0.5f * (above[k] - below[k]);
+        const float hxx = here[k + 1] + here[k - 1] - 2 * v;
+        const float hyy = here[k + cols] + here[k - cols] - 2 * v;
+        const float hss = above[k] + below[k] - 2 * v;
+        const float hxy = 0.25f * (here[k + cols + 1] - here[k + cols - 1] - here[k - cols + 1] +
+                                   here[k - cols - 1]);
+        const float hxs = 0.25f * (above[k + 1] - above[k - 1] - below[k + 1] + below[k - 1]);
+        const float hys =
+            0.25f * (above[k + cols] - above[k - cols] - below[k + cols] + below[k - cols]);
+        const cv::Matx33f H(hxx, hxy, hxs, hxy, hyy, hys, hxs, hys, hss);
+        cv::Vec3f offset;
+        if (!cv::solve(H, cv::Vec3f(-gx, -gy, -gs), offset, cv::DECOMP_LU)) return;
+        if (std::abs(offset[0]) >= 0.5f || std::abs(offset[1]) >= 0.5f ||
+            std::abs(offset[2]) >= 0.5f)
+          return;
+        SurfKeypoint kp;
+        kp.position_px = cv::Point2f((x + offset[0]) * step, (y + offset[1]) * step);
+        const float size =
+            layers[i].filter_size + offset[2] * (layers[i + 1].filter_size - layers[i].filter_size);
+        kp.scale_px = 1.2f / 9.f * size;
+        kp.response = v + 0.5f * (gx * offset[0] + gy * offset[1] + gs * offset[2]);
+        kp.laplacian_sign = LaplacianSign(layers[i], y, x);
+        kp.octave = o;
+        keypoints->push_back(kp);
+      };
       for (int y = margin; y < rows - margin; ++y) {
-        for (int x = margin; x < cols - margin; ++x) {
-          const int k = y * cols + x;
-          const float v = here[k];
-          if (v <= threshold) continue;
-          // 3x3x3 non-maximum suppression.
-          bool is_max = true;
-          for (int dy = -1; dy <= 1 && is_max; ++dy)
-            for (int dx = -1; dx <= 1; ++dx) {
-              const int n = k + dy * cols + dx;
-              if (below[n] >= v || above[n] >= v || (n != k && here[n] >= v)) {
-                is_max = false;
-                break;
-              }
-            }
-          if (!is_max) continue;
-          if (!mask.empty() && mask.at<uint8_t>(y * step, x * step) == 0) continue;
-          // Sub-pixel / sub-scale: Newton step on the quadratic fit (x, y, scale).
-          const float gx = 0.5f * (here[k + 1] - here[k - 1]);
-          const float gy = 0.5f * (here[k + cols] - here[k - cols]);
-          const float gs = 0.5f * (above[k] - below[k]);
-          const float hxx = here[k + 1] + here[k - 1] - 2 * v;
-          const float hyy = here[k + cols] + here[k - cols] - 2 * v;
-          const float hss = above[k] + below[k] - 2 * v;
-          const float hxy = 0.25f * (here[k + cols + 1] - here[k + cols - 1] - here[k - cols + 1] +
-                                     here[k - cols - 1]);
-          const float hxs = 0.25f * (above[k + 1] - above[k - 1] - below[k + 1] + below[k - 1]);
-          const float hys =
-              0.25f * (above[k + cols] - above[k - cols] - below[k + cols] + below[k - cols]);
-          const cv::Matx33f H(hxx, hxy, hxs, hxy, hyy, hys, hxs, hys, hss);
-          cv::Vec3f offset;
-          if (!cv::solve(H, cv::Vec3f(-gx, -gy, -gs), offset, cv::DECOMP_LU)) continue;
-          if (std::abs(offset[0]) >= 0.5f || std::abs(offset[1]) >= 0.5f ||
-              std::abs(offset[2]) >= 0.5f)
-            continue;
-          SurfKeypoint kp;
-          kp.position_px = cv::Point2f((x + offset[0]) * step, (y + offset[1]) * step);
-          const float size = layers[i].filter_size +
-                             offset[2] * (layers[i + 1].filter_size - layers[i].filter_size);
-          kp.scale_px = 1.2f / 9.f * size;
-          kp.response = v + 0.5f * (gx * offset[0] + gy * offset[1] + gs * offset[2]);
-          kp.laplacian_sign = LaplacianSign(layers[i], y, x);
-          kp.octave = o;
-          keypoints->push_back(kp);
+        if (centres == nullptr) {
+          for (int x = margin; x < cols - margin; ++x) consider(y, x);
+        } else {
+          for (const auto& [x0, x1] : maxima[y])
+            for (int x = std::max(x0, margin); x < std::min(x1, cols - margin); ++x) consider(y, x);
         }
       }
     }
   }
+  if (centres != nullptr) {
+    const float r2 = radius_px * radius_px;
+    keypoints->erase(std::remove_if(keypoints->begin(), keypoints->end(),
+                                    [&](const SurfKeypoint& kp) {
+                                      for (const cv::Point2f& c : *centres) {
+                                        const cv::Point2f d = kp.position_px - c;
+                                        if (d.dot(d) <= r2) return false;
+                                      }
+                                      return true;
+                                    }),
+                     keypoints->end());
+  }
   std::sort(keypoints->begin(), keypoints->end(),
             [](const SurfKeypoint& a, const SurfKeypoint& b) { return a.response > b.response; });
-  if (options_.max_keypoints > 0 && static_cast<int>(keypoints->size()) > options_.max_keypoints)
+  if (centres == nullptr && options_.max_keypoints > 0 &&
+      static_cast<int>(keypoints->size()) > options_.max_keypoints)
     keypoints->resize(options_.max_keypoints);
   if (!options_.upright) ComputeOrientations(keypoints);
 }

@@ -53,6 +53,14 @@ class SurfDetector {
   // (CV_8UC1, image size, nonzero = allowed) may be empty. Orientations are
   // assigned unless options.upright.
   void Detect(const cv::Mat& mask, std::vector<SurfKeypoint>* keypoints);
+  // The points Detect() finds within `radius_px` of one of `centres` (same
+  // positions, responses and order), with the responses computed only on the
+  // samples that can give or neighbour such a point: the box sums come from
+  // the whole image's integral image, so nothing depends on where the
+  // computation stops. Re-identification looks near a few predictions, where
+  // the whole frame cost 60 million instructions. options.max_keypoints is ignored.
+  void DetectNear(const cv::Mat& mask, const std::vector<cv::Point2f>& centres, float radius_px,
+                  std::vector<SurfKeypoint>* keypoints);
   // Dominant orientation from Haar responses within 6s.
   void ComputeOrientations(std::vector<SurfKeypoint>* keypoints) const;
   // Unit-length 64-D descriptors, one row (CV_32F) per keypoint.
@@ -68,7 +76,14 @@ class SurfDetector {
     int rows = 0, cols = 0;
     std::vector<float> response;  // (rows x cols) det of Hessian, 0 where the filter does not fit
   };
-  void BuildLayer(Layer* layer) const;
+  // Per sample row of a layer, the sorted, disjoint column intervals [first, second).
+  using RowSpans = std::vector<std::vector<std::pair<int, int>>>;
+  // Responses of `layer` (filter_size and step set) on the whole image, or
+  // only on `spans` (entries elsewhere are left as they were and must not be read).
+  void BuildLayer(Layer* layer, const RowSpans* spans) const;
+  // Detect (centres == nullptr) or DetectNear.
+  void DetectIn(const cv::Mat& mask, const std::vector<cv::Point2f>* centres, float radius_px,
+                std::vector<SurfKeypoint>* keypoints);
   // Sign of Dxx + Dyy at sample (y, x) of `layer`; computed only for the
   // keypoints, which keeps the response loop free of a second output.
   int8_t LaplacianSign(const Layer& layer, int y, int x) const;

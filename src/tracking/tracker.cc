@@ -686,17 +686,14 @@ int FeatureTracker::Reidentify(const cv::Mat& roi_mask) {
   if (waiting.empty()) return 0;
 
   // Fresh SURF points near a prediction and away from the followed features;
-  // SURF runs only around the predictions (DetectSurfNear), not on the whole frame.
+  // the responses are computed only around the predictions (DetectNear), not on the whole frame.
   const float gate = static_cast<float>(o.gate_px), wide = 2 * gate;
   std::vector<cv::Point2f> centres;
   for (int l : waiting) centres.push_back(predicted[l]);
   std::vector<SurfKeypoint> detected, near;
-  // Windows that would cover more than kMaxWindowArea of the frame (as on the
-  // real clip, where 100-300 features wait all over it) cost more than the
-  // whole frame with the integral image round_surf_ already has.
-  constexpr double kMaxWindowArea = 0.6;
-  if (!o.search_near_predictions || !DetectSurfNear(round_surf_.options(), gray_, roi_mask, centres,
-                                                    wide, &detected, kMaxWindowArea))
+  if (o.search_near_predictions)
+    round_surf_.DetectNear(roi_mask, centres, wide, &detected);
+  else
     round_surf_.Detect(roi_mask, &detected);
   const float min_distance = static_cast<float>(options_.min_distance_px);
   for (const SurfKeypoint& kp : detected) {

@@ -98,9 +98,9 @@ struct ReidentifyOptions {
   // (0.1); on the real clip the descriptor matches correlate with median 0.72,
   // as tissue deforms while hidden. Default 0.6.
   double min_patch_correlation = 0.6;
-  // Run SURF only in windows around the predictions (DetectSurfNear: the same
-  // points) when they cover less than 60 % of the frame, instead of on the
-  // whole frame; false is the reference the windows reproduce. Default true.
+  // Compute the SURF responses only around the predictions
+  // (SurfDetector::DetectNear: the same points) instead of on the whole frame;
+  // false is the reference this reproduces. Default true.
   bool search_near_predictions = true;
   // Re-acquisition by Lucas-Kanade: a waiting feature that no SURF point
   // matched is followed, at level 0, from the patch it showed in its last

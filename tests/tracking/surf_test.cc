@@ -249,5 +249,54 @@ TEST(Surf, MaskAndOptions) {
   EXPECT_THROW(options.Check(), Error);
 }
 
+// Responses computed only around the centres, on the whole image's integral
+// image, give exactly the points of whole-image detection near the centres:
+// same positions, scales, responses, signs, orientations and order. Centres
+// at corners and edges, overlapping, alone, outside the image; with and
+// without a mask; reusing the detector's buffers after a whole-image call.
+TEST(Surf, DetectNearEqualsTheWholeImagesPointsNearTheCentres) {
+  const cv::Mat image = Texture(512, 640, 31);
+  cv::Mat roi(image.size(), CV_8UC1, cv::Scalar(0));
+  cv::circle(roi, cv::Point(330, 250), 230, cv::Scalar(255), -1);
+  const std::vector<cv::Point2f> centres = {{6, 5},     {634, 507}, {320, 3},   {320, 256},
+                                            {150, 400}, {170, 395}, {500, 120}, {-40, 300}};
+  for (const bool upright : {true, false}) {
+    SurfOptions options;
+    options.hessian_threshold = 8;
+    options.upright = upright;
+    for (const float radius : {3.f, 24.f, 80.f}) {
+      for (const cv::Mat& mask : {cv::Mat(), roi}) {
+        SurfDetector surf(options);
+        surf.SetImage(image);
+        std::vector<SurfKeypoint> all, expected, actual;
+        surf.Detect(mask, &all);
+        for (const SurfKeypoint& kp : all)
+          for (const cv::Point2f& c : centres)
+            if ((kp.position_px - c).dot(kp.position_px - c) <= radius * radius) {
+              expected.push_back(kp);
+              break;
+            }
+        surf.DetectNear(mask, centres, radius, &actual);
+        if (radius > 20) ASSERT_GT(expected.size(), 20u);
+        ASSERT_EQ(actual.size(), expected.size()) << "radius " << radius;
+        for (size_t i = 0; i < expected.size(); ++i) {
+          EXPECT_EQ(actual[i].position_px, expected[i].position_px) << i;
+          EXPECT_EQ(actual[i].scale_px, expected[i].scale_px) << i;
+          EXPECT_EQ(actual[i].response, expected[i].response) << i;
+          EXPECT_EQ(actual[i].laplacian_sign, expected[i].laplacian_sign) << i;
+          EXPECT_EQ(actual[i].octave, expected[i].octave) << i;
+          EXPECT_EQ(actual[i].orientation_rad, expected[i].orientation_rad) << i;
+        }
+      }
+    }
+  }
+  SurfDetector surf;
+  surf.SetImage(image);
+  std::vector<SurfKeypoint> none{SurfKeypoint()};
+  surf.DetectNear(cv::Mat(), {}, 10.f, &none);
+  EXPECT_TRUE(none.empty());
+  EXPECT_THROW(surf.DetectNear(cv::Mat(), centres, -1.f, &none), Error);
+}
+
 }  // namespace
 }  // namespace arreg
