@@ -60,7 +60,7 @@ int RunRun(int argc, char** argv) {
   bool show_features = false, show_targets = false, show_springs = false, no_render = false;
   bool record_debug = false;
   int frames = -1, save_every = 0, supersampling = 0, substeps = 0, crf = -1;
-  double stiffness = 0, opacity = -1;
+  double stiffness = 0, stiffness_relative = 0, opacity = -1;
   OptionParser parser(
       "arreg run --scene S.json --out DIR [options]",
       "Registers the scene's organ model to its video: tracks features, lifts them to 3D, "
@@ -85,7 +85,10 @@ int RunRun(int argc, char** argv) {
                 "1: one sample per pixel with analytic edge anti-aliasing (default); 2..8: "
                 "supersampled reference renderer");
   parser.AddInt("crf", &crf, "Q", "x264 quality of overlay.mp4 (default 23)");
-  parser.AddDouble("stiffness", &stiffness, "N_PER_M", "feature spring stiffness (default 500)");
+  parser.AddDouble("stiffness", &stiffness, "N_PER_M",
+                   "absolute feature spring stiffness (default: from --stiffness-relative)");
+  parser.AddDouble("stiffness-relative", &stiffness_relative, "KAPPA",
+                   "springs' total stiffness / (E x volume / seen area) (default 150)");
   parser.AddInt("substeps", &substeps, "N", "implicit Euler sub-steps per frame (default 1)");
   parser.AddString("lifting", &lifting, "surface|plane", "lifting target (default surface)");
   parser.AddString("lift-update", &lift_update, "intercept|raycast",
@@ -115,6 +118,8 @@ int RunRun(int argc, char** argv) {
   if (parser.Given("supersampling")) options.render.supersampling = supersampling;
   if (parser.Given("crf")) options.output.crf = crf;
   if (parser.Given("stiffness")) options.mechanics.spring_stiffness_n_per_m = stiffness;
+  if (parser.Given("stiffness-relative"))
+    options.mechanics.spring_stiffness_relative = stiffness_relative;
   if (parser.Given("substeps")) options.mechanics.substeps = substeps;
   if (parser.Given("lifting")) {
     ARREG_CHECK_INPUT(lifting == "surface" || lifting == "plane", "", "--lifting",

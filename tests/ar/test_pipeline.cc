@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
 
 #include "ar/pipeline/overlay.h"
 #include "ar/pipeline/record_writer.h"
@@ -172,6 +173,15 @@ TEST(Pipeline, StaticVideoKeepsModelInPlaceAndRecordsAreComplete) {
   EXPECT_EQ(run_json.at("frames").get<int>(), 8);
   EXPECT_FALSE(run_json.at("interrupted").get<bool>());
   EXPECT_TRUE(run_json.at("topology").get<bool>());
+  // The resolved spring stiffness is recorded: kappa x E x V / (A x N) with V the box's
+  // 36,000 mm^3, A its 60 x 60 mm top face (the only one facing the camera) and N the attached
+  // features.
+  const nlohmann::json& mech = run_json.at("options").at("mechanics");
+  const int attached = run_json.at("features").at("attached").get<int>();
+  EXPECT_NEAR(mech.at("spring_model_volume_mm3").get<double>(), 36000.0, 1e-6);
+  EXPECT_NEAR(mech.at("spring_visible_area_mm2").get<double>(), 3600.0, 1e-6);
+  EXPECT_NEAR(mech.at("spring_stiffness_resolved_n_per_m").get<double>(),
+              150.0 * 5000.0 * 10.0 / attached * 1e-3, 1e-9);
   VideoReader overlay;
   overlay.Open(out + "/overlay.mp4");
   EXPECT_EQ(overlay.frame_count(), 8);
@@ -324,6 +334,79 @@ TEST(PipelineOptions, TrackingAndDetectorKeysRoundTrip) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("min_correlation"), std::string::npos) << e.what();
   }
+}
+
+// The relative stiffness and the absolute override reach the options and run.json; bad values
+// name their key.
+TEST(PipelineOptions, SpringStiffnessKeysRoundTrip) {
+  Scene scene;
+  scene.path = "scene.json";
+  PipelineOptions o = ReadPipelineOptions(scene);
+  EXPECT_DOUBLE_EQ(o.mechanics.spring_stiffness_relative, 150.0);
+  EXPECT_DOUBLE_EQ(o.mechanics.spring_stiffness_n_per_m, 0.0);  // no override
+  scene.mechanics = {{"spring_stiffness_relative", 40.0}, {"spring_stiffness_n_per_m", 800.0}};
+  o = ReadPipelineOptions(scene);
+  EXPECT_DOUBLE_EQ(o.mechanics.spring_stiffness_relative, 40.0);
+  EXPECT_DOUBLE_EQ(o.mechanics.spring_stiffness_n_per_m, 800.0);
+  const nlohmann::json j = PipelineOptionsToJson(o);
+  EXPECT_DOUBLE_EQ(j["mechanics"]["spring_stiffness_relative"].get<double>(), 40.0);
+  EXPECT_DOUBLE_EQ(j["mechanics"]["spring_stiffness_n_per_m"].get<double>(), 800.0);
+
+  for (const auto& [key, value] : {std::pair<const char*, double>{"spring_stiffness_relative", 0.0},
+                                   {"spring_stiffness_relative", -1.0},
+                                   {"spring_stiffness_relative", std::nan("")},
+                                   {"spring_stiffness_n_per_m", -500.0}}) {
+    scene.mechanics = {{key, value}};
+    try {
+      ReadPipelineOptions(scene);
+      FAIL() << key << " = " << value << " was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+    }
+  }
+}
+
+// k = kappa x E x V / (A x N): linear in kappa, E and V, inverse in A and N; the documented
+// reference (docs/pipeline.md): band-stretch, E = 100 kPa, V = 86,400 mm^3, A = 10,960 mm^2
+// facing the camera, 232 springs gives 510 N/m at the default kappa 150.
+TEST(SpringStiffness, ScalesWithModulusVolumeAreaAndSprings) {
+  const MechanicsStageOptions o;
+  const double e = 1e5, v = 86400.0, a = 10960.0;
+  const int n = 232;
+  const SpringStiffness ref = ResolveSpringStiffness(o, e, v, a, n);
+  EXPECT_TRUE(ref.relative);
+  EXPECT_NEAR(ref.n_per_m, 509.7, 0.05);
+  // Ten times stiffer material: ten times stiffer springs (band-cut-s's 1 MPa).
+  EXPECT_NEAR(ResolveSpringStiffness(o, 10 * e, v, a, n).n_per_m, 10 * ref.n_per_m, 1e-9);
+  EXPECT_NEAR(ResolveSpringStiffness(o, 0.2 * e, v, a, n).n_per_m, 0.2 * ref.n_per_m, 1e-9);
+  // Twice as deep under the same seen area: twice; the same body seen over twice the area or
+  // held by twice the springs: half each (the total N x k stays kappa x E x V / A).
+  EXPECT_NEAR(ResolveSpringStiffness(o, e, 2 * v, a, n).n_per_m, 2 * ref.n_per_m, 1e-9);
+  EXPECT_NEAR(ResolveSpringStiffness(o, e, v, 2 * a, n).n_per_m, 0.5 * ref.n_per_m, 1e-9);
+  EXPECT_NEAR(ResolveSpringStiffness(o, e, v, a, 2 * n).n_per_m, 0.5 * ref.n_per_m, 1e-9);
+  MechanicsStageOptions twice = o;
+  twice.spring_stiffness_relative = 300.0;
+  EXPECT_NEAR(ResolveSpringStiffness(twice, e, v, a, n).n_per_m, 2 * ref.n_per_m, 1e-9);
+  EXPECT_DOUBLE_EQ(ResolveSpringStiffness(o, e, v, a, 0).n_per_m, 0.0);  // nothing attached
+  // The absolute override ignores material and geometry.
+  MechanicsStageOptions absolute = o;
+  absolute.spring_stiffness_n_per_m = 500.0;
+  const SpringStiffness fixed = ResolveSpringStiffness(absolute, 10 * e, v, a, n);
+  EXPECT_FALSE(fixed.relative);
+  EXPECT_DOUBLE_EQ(fixed.n_per_m, 500.0);
+  EXPECT_THROW(ResolveSpringStiffness(o, 0.0, v, a, n), Error);
+  EXPECT_THROW(ResolveSpringStiffness(o, e, 0.0, a, n), Error);
+  EXPECT_THROW(ResolveSpringStiffness(o, e, v, 0.0, n), Error);
+}
+
+// Faces count towards A when their outward side faces the eye: the top of a 60 x 60 x 10 mm box
+// seen from straight above, three faces seen from far along the diagonal, none from inside.
+TEST(SpringStiffness, AreaFacingTheCamera) {
+  const SurfaceMesh box =
+      ExtractBoundary(MakeBoxTetMesh(Eigen::Vector3d(60, 60, 10), Eigen::Vector3i(6, 6, 1)));
+  EXPECT_NEAR(AreaFacing(box, Eigen::Vector3d(30, 30, 200)), 3600.0, 1e-9);
+  EXPECT_NEAR(AreaFacing(box, Eigen::Vector3d(1e6, 1e6, 1e6)), 3600.0 + 2 * 600.0, 1e-6);
+  EXPECT_NEAR(AreaFacing(box, Eigen::Vector3d(30, 30, 5)), 0.0, 1e-12);
 }
 
 }  // namespace

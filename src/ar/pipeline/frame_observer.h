@@ -18,6 +18,7 @@
 namespace arreg::pipeline {
 
 struct PipelineOptions;
+struct SpringStiffness;
 
 // Milliseconds spent per stage in one frame (or summed over a run).
 struct StageTimes {
@@ -30,8 +31,9 @@ struct StageTimes {
 
 // One feature attached at frame 0 (row r of every per-feature matrix below).
 struct FeatureView {
-  int id = 0;             // tracker id (TrackStore)
-  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();  // where the tracker has it now (last position when lost)
+  int id = 0;  // tracker id (TrackStore)
+  Eigen::Vector2d pixel =
+      Eigen::Vector2d::Zero();  // where the tracker has it now (last position when lost)
   TrackStatus track_status = TrackStatus::kTracked;  // this frame (final once not kTracked)
   lift::LiftStatus lift_status = lift::LiftStatus::kNotAttached;
   bool alive = false;             // tracked and attached: its spring acts
@@ -97,6 +99,7 @@ struct RunStart {
   int width = 0, height = 0;
   int model_vertices = 0, model_tetrahedra = 0;
   int features_detected = 0, features_attached = 0;
+  const SpringStiffness* springs = nullptr;  // the feature spring stiffness resolved at frame 0
   // The cut detector's options in use: radii resolved from the features at Initialize. Null
   // without cut handling.
   const cutting::CutDetectorOptions* detector = nullptr;

@@ -8,8 +8,12 @@
 namespace arreg::pipeline {
 
 void MechanicsStageOptions::Check() const {
-  ARREG_CHECK_INPUT(std::isfinite(spring_stiffness_n_per_m) && spring_stiffness_n_per_m > 0, "",
-                    "mechanics.spring_stiffness_n_per_m", "must be > 0, got ",
+  ARREG_CHECK_INPUT(std::isfinite(spring_stiffness_relative) && spring_stiffness_relative > 0, "",
+                    "mechanics.spring_stiffness_relative", "must be > 0, got ",
+                    spring_stiffness_relative);
+  ARREG_CHECK_INPUT(std::isfinite(spring_stiffness_n_per_m) && spring_stiffness_n_per_m >= 0, "",
+                    "mechanics.spring_stiffness_n_per_m",
+                    "must be > 0 (absolute override) or 0 (use spring_stiffness_relative), got ",
                     spring_stiffness_n_per_m);
   ARREG_CHECK_INPUT(substeps >= 1, "", "mechanics.substeps", "must be >= 1, got ", substeps);
   ARREG_CHECK_INPUT(newton_iterations >= 1, "", "mechanics.newton_iterations", "must be >= 1, got ",
@@ -71,6 +75,46 @@ void PipelineOptions::Check() const {
                     roi_dilation_px);
 }
 
+SpringStiffness ResolveSpringStiffness(const MechanicsStageOptions& mechanics,
+                                       double youngs_modulus_pa, double volume_mm3,
+                                       double visible_area_mm2, int springs) {
+  SpringStiffness k;
+  k.springs = springs;
+  k.volume_mm3 = volume_mm3;
+  k.visible_area_mm2 = visible_area_mm2;
+  k.relative = mechanics.spring_stiffness_n_per_m <= 0;
+  if (!k.relative) {
+    k.n_per_m = mechanics.spring_stiffness_n_per_m;
+    return k;
+  }
+  if (springs <= 0) return k;  // nothing attached: no spring to give a stiffness
+  ARREG_CHECK_INPUT(std::isfinite(youngs_modulus_pa) && youngs_modulus_pa > 0, "",
+                    "material.youngs_modulus_pa", "must be > 0, got ", youngs_modulus_pa);
+  ARREG_CHECK_INPUT(std::isfinite(volume_mm3) && volume_mm3 > 0, "", "model",
+                    "the relative spring stiffness needs a model volume > 0, got ", volume_mm3,
+                    " mm^3");
+  ARREG_CHECK_INPUT(std::isfinite(visible_area_mm2) && visible_area_mm2 > 0, "", "model",
+                    "the relative spring stiffness needs surface facing the camera, got ",
+                    visible_area_mm2, " mm^2");
+  // Pa x mm = 1e-3 N/m.
+  k.n_per_m = mechanics.spring_stiffness_relative * youngs_modulus_pa * volume_mm3 /
+              (visible_area_mm2 * springs) * 1e-3;
+  return k;
+}
+
+double AreaFacing(const SurfaceMesh& surface, const Eigen::Vector3d& eye_world) {
+  double area_mm2 = 0;
+  for (int f = 0; f < surface.faces.rows(); ++f) {
+    const Eigen::Vector3d a = surface.vertices.row(surface.faces(f, 0)).transpose();
+    const Eigen::Vector3d b = surface.vertices.row(surface.faces(f, 1)).transpose();
+    const Eigen::Vector3d c = surface.vertices.row(surface.faces(f, 2)).transpose();
+    const Eigen::Vector3d twice_area_normal = (b - a).cross(c - a);
+    // The sign is the same at every point of the face's plane, so the test needs no centroid.
+    if (twice_area_normal.dot(eye_world - a) > 0) area_mm2 += 0.5 * twice_area_normal.norm();
+  }
+  return area_mm2;
+}
+
 namespace {
 
 void ReadTracking(const Scene& scene, FeatureTrackerOptions* o) {
@@ -110,6 +154,7 @@ void ReadLifting(const Scene& scene, lift::FeatureLifterOptions* o) {
 
 void ReadMechanics(const Scene& scene, MechanicsStageOptions* o) {
   JsonObjectReader r(scene.mechanics, scene.path, "mechanics");
+  r.Optional("spring_stiffness_relative", &o->spring_stiffness_relative);
   r.Optional("spring_stiffness_n_per_m", &o->spring_stiffness_n_per_m);
   r.Optional("substeps", &o->substeps);
   r.Optional("newton_iterations", &o->newton_iterations);
@@ -137,6 +182,8 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
       measure == "image" ? cutting::CutMeasure::kImageOnly : cutting::CutMeasure::kModelRegularised;
   r.Optional("require_opening", &o->detector.require_opening);
   r.Optional("cluster_outliers", &o->detector.cluster_outliers);
+  r.Optional("min_opening_balance", &o->detector.min_opening_balance);
+  r.Optional("grow_at_extremities_only", &o->detector.grow_at_extremities_only);
   r.Optional("min_outlier_measure_mm", &o->detector.min_outlier_measure_mm);
   r.Optional("spring_margin_mm", &o->spring_margin_mm);
   r.Optional("extrusion_margin_mm", &o->extrusion_margin_mm);
@@ -214,7 +261,8 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                              ? "raycast"
                              : "intercept"},
       {"max_depth_jump_mm", o.lifting.max_depth_jump_mm}};
-  j["mechanics"] = {{"spring_stiffness_n_per_m", o.mechanics.spring_stiffness_n_per_m},
+  j["mechanics"] = {{"spring_stiffness_relative", o.mechanics.spring_stiffness_relative},
+                    {"spring_stiffness_n_per_m", o.mechanics.spring_stiffness_n_per_m},
                     {"substeps", o.mechanics.substeps},
                     {"newton_iterations", o.mechanics.newton_iterations},
                     {"rayleigh_mass_per_s", o.mechanics.rayleigh_mass_per_s},
@@ -235,6 +283,8 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
        o.cutting.detector.measure == cutting::CutMeasure::kImageOnly ? "image" : "model"},
       {"require_opening", o.cutting.detector.require_opening},
       {"cluster_outliers", o.cutting.detector.cluster_outliers},
+      {"min_opening_balance", o.cutting.detector.min_opening_balance},
+      {"grow_at_extremities_only", o.cutting.detector.grow_at_extremities_only},
       {"min_outlier_measure_mm", o.cutting.detector.min_outlier_measure_mm},
       {"spring_margin_mm", o.cutting.spring_margin_mm},
       {"extrusion_margin_mm", o.cutting.extrusion_margin_mm},

@@ -98,6 +98,12 @@ void RecordWriter::OnStart(const RunStart& start) {
   run_["camera"] = CameraToJson(scene.camera);
   run_["video"] = scene.video_path;
   run_["options"] = PipelineOptionsToJson(*start.options);
+  if (start.springs) {
+    nlohmann::json& m = run_["options"]["mechanics"];
+    m["spring_stiffness_resolved_n_per_m"] = start.springs->n_per_m;
+    m["spring_model_volume_mm3"] = start.springs->volume_mm3;
+    m["spring_visible_area_mm2"] = start.springs->visible_area_mm2;
+  }
   run_["model"] = {{"vertices", start.model_vertices}, {"tetrahedra", start.model_tetrahedra}};
   run_["features"] = {{"detected", start.features_detected}, {"attached", start.features_attached}};
   run_["fps_video"] = start.fps;

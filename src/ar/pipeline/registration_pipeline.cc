@@ -247,14 +247,16 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   mechanics::EmbeddedPoints feature_embedding =
       mechanics::EmbeddedPoints::Embed(attach_points, state.rest_positions(), state.tetrahedra());
   int attached = 0;
+  for (const lift::FeatureAttachment& a : attachments) attached += a.attached ? 1 : 0;
+  const SpringStiffness stiffness = ResolveSpringStiffness(
+      o.mechanics, scene.material.youngs_modulus_pa, TetVolumes(impl_->model.mesh).sum(),
+      AreaFacing(surface, camera.camera_from_world.inverse().translation()), attached);
   for (int r = 0; r < nf; ++r) {
     FeatureView& v = features[r];
     v.lift_status = lifter.status()[r];
     if (!attachments[r].attached) continue;
-    v.spring = springs.Add(feature_embedding[r], attachments[r].point_mm,
-                           o.mechanics.spring_stiffness_n_per_m);
+    v.spring = springs.Add(feature_embedding[r], attachments[r].point_mm, stiffness.n_per_m);
     v.alive = v.spring_active = true;
-    ++attached;
   }
   ms.mechanics = since(t0);
 
@@ -302,6 +304,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   start.model_tetrahedra = state.num_tetrahedra();
   start.features_detected = nf;
   start.features_attached = attached;
+  start.springs = &stiffness;
   if (detector) start.detector = &detector->options();
   for (FrameObserver* ob : impl_->observers) ob->OnStart(start);
   ARREG_LOG_DEBUG("run: ", nf, " features detected in the model silhouette, ", attached,
