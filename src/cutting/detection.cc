@@ -68,6 +68,10 @@ void CutDetectorOptions::Check() const {
   ARREG_CHECK_INPUT(boundary_cone_half_angle_deg > 0.0 && boundary_cone_half_angle_deg < 90.0, "",
                     "cut_detector.boundary_cone_half_angle_deg", "must be in (0, 90), got ",
                     boundary_cone_half_angle_deg);
+  ARREG_CHECK_INPUT(std::isfinite(min_opening_balance) && min_opening_balance >= 0.0 &&
+                        min_opening_balance <= 1.0,
+                    "", "cut_detector.min_opening_balance", "must be in [0, 1], got ",
+                    min_opening_balance);
   ARREG_CHECK_INPUT(max_cut_points_per_frame >= 1, "", "cut_detector.max_cut_points_per_frame",
                     "must be >= 1, got ", max_cut_points_per_frame);
 }
@@ -182,6 +186,8 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   result->outliers.clear();
   result->pairs_removed_by_cut = 0;
   result->lone_features = 0;
+  result->one_sided_clusters = 0;
+  result->refused_points = 0;
   result->pairs_removed_by_death = 0;
   result->segment_added = false;
   result->look_ahead_mm.reset();
@@ -227,34 +233,56 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   // pairs still present count (removed ones were pruned around earlier points).
   candidates_ = result->outliers;
   for (int inserted = 0; inserted < options_.max_cut_points_per_frame; ++inserted) {
-    if (OutlierCount(candidates_, *result) < options_.min_outliers) break;
-    if (options_.cluster_outliers) {
-      SelectCluster(*result);
-      while (options_.reject_lone_features &&
-             OutlierCount(cluster_, *result) >= options_.min_outliers &&
-             RemoveLoneFeature(*result)) {
-        ++result->lone_features;
-        SelectCluster(*result);
-      }
-      if (OutlierCount(cluster_, *result) < options_.min_outliers) break;
-    } else {
-      cluster_ = candidates_;
-    }
-    Eigen::Vector3d current = Eigen::Vector3d::Zero(), initial = Eigen::Vector3d::Zero();
-    double weight = 0.0;
-    for (int k : cluster_) {
-      const int l = result->pairs[k].first, m = result->pairs[k].second;
-      const double w = result->measure[k];
-      current += w * 0.5 * (model_mm_.row(l) + model_mm_.row(m)).transpose();
-      initial += w * 0.5 * (initial_mm_.row(l) + initial_mm_.row(m)).transpose();
-      weight += w;
-    }
+    // Select a cluster and its point; clusters rejected as one feature's star, as one-sided or
+    // as no growth of the polyline leave the candidates and the next one is tried.
     CutPoint point;
-    point.position_mm = current / weight;
-    point.initial_position_mm = initial / weight;
-    point.frame = frame_;
-    point.num_outliers = static_cast<int>(cluster_.size());
-    const bool front = InsertCutPoint(point);
+    Placement placement = Placement::kRefuse;
+    while (placement == Placement::kRefuse) {
+      if (OutlierCount(candidates_, *result) < options_.min_outliers) break;
+      if (options_.cluster_outliers) {
+        SelectCluster(*result);
+        while (options_.reject_lone_features &&
+               OutlierCount(cluster_, *result) >= options_.min_outliers &&
+               RemoveLoneFeature(*result)) {
+          ++result->lone_features;
+          SelectCluster(*result);
+        }
+        if (OutlierCount(cluster_, *result) < options_.min_outliers) break;
+      } else {
+        cluster_ = candidates_;
+      }
+      Eigen::Vector3d current = Eigen::Vector3d::Zero(), initial = Eigen::Vector3d::Zero();
+      double weight = 0.0;
+      for (int k : cluster_) {
+        const int l = result->pairs[k].first, m = result->pairs[k].second;
+        const double w = result->measure[k];
+        current += w * 0.5 * (model_mm_.row(l) + model_mm_.row(m)).transpose();
+        initial += w * 0.5 * (initial_mm_.row(l) + initial_mm_.row(m)).transpose();
+        weight += w;
+      }
+      point.position_mm = current / weight;
+      point.initial_position_mm = initial / weight;
+      point.frame = frame_;
+      point.num_outliers = static_cast<int>(cluster_.size());
+      // Behind a cut polyline's extremities the model is cut and follows the lips, so pairs
+      // from there to the uncut part ahead are one-sided by construction: the balance is only
+      // asked of a cluster where the model is whole.
+      if (options_.cluster_outliers && options_.min_opening_balance > 0.0 &&
+          !(polyline_.size() >= 2 &&
+            (NearExtremity(point, polyline_.front()) || NearExtremity(point, polyline_.back()))) &&
+          OpeningBalance(*result) < options_.min_opening_balance) {
+        ++result->one_sided_clusters;
+        DropClusterFromCandidates();
+        continue;
+      }
+      placement = PlaceCutPoint(point);
+      if (placement == Placement::kRefuse) {
+        ++result->refused_points;
+        DropClusterFromCandidates();
+      }
+    }
+    if (placement == Placement::kRefuse) break;
+    const bool front = InsertCutPoint(point, placement);
     result->new_cut_points.push_back(point);
     if (polyline_.size() >= 2) {
       result->segment_added = true;
@@ -394,19 +422,75 @@ void CutDetector::RemovePairsNear(const Eigen::Vector3d& centre_mm, int* removed
   *removed += static_cast<int>(before - pairs_.size());
 }
 
-bool CutDetector::InsertCutPoint(const CutPoint& point) {
-  if (polyline_.size() < 2) {
-    polyline_.push_back(point);
-    return false;
-  }
+CutDetector::Placement CutDetector::PlaceCutPoint(const CutPoint& point) const {
+  if (polyline_.empty()) return Placement::kBack;
   const double to_front = (point.position_mm - polyline_.front().position_mm).squaredNorm();
   const double to_back = (point.position_mm - polyline_.back().position_mm).squaredNorm();
-  if (to_front < to_back) {
+  const Placement nearest = to_front < to_back ? Placement::kFront : Placement::kBack;
+  if (!options_.grow_at_extremities_only) return nearest;
+  const Eigen::Vector3d& p = point.initial_position_mm;
+  const auto near = [&](const CutPoint& end) { return NearExtremity(point, end); };
+  if (polyline_.size() == 1) return near(polyline_[0]) ? Placement::kBack : Placement::kReplace;
+  // Joining at an extremity must not turn the polyline back by more than 90 degrees.
+  const size_t last = polyline_.size() - 1;
+  const auto continues = [&](bool front) {
+    const CutPoint& end = polyline_[front ? 0 : last];
+    const CutPoint& prev = polyline_[front ? 1 : last - 1];
+    return near(end) &&
+           (p - end.initial_position_mm).dot(end.initial_position_mm - prev.initial_position_mm) >=
+               0.0;
+  };
+  const bool front_first = nearest == Placement::kFront;
+  if (continues(front_first)) return nearest;
+  if (continues(!front_first)) return front_first ? Placement::kBack : Placement::kFront;
+  return Placement::kRefuse;
+}
+
+bool CutDetector::NearExtremity(const CutPoint& point, const CutPoint& end) const {
+  // Frame-0 coordinates: r_F and the pair lengths of the growth radius are frame-0 lengths.
+  const double growth_mm = options_.cut_point_radius_mm + 1.5 * options_.neighbour_radius_mm;
+  return (point.initial_position_mm - end.initial_position_mm).squaredNorm() <=
+         growth_mm * growth_mm;
+}
+
+bool CutDetector::InsertCutPoint(const CutPoint& point, Placement placement) {
+  ARREG_ASSERT(placement != Placement::kRefuse, "");
+  if (placement == Placement::kReplace) {
+    polyline_.assign(1, point);
+    return false;
+  }
+  if (placement == Placement::kFront && polyline_.size() >= 2) {
     polyline_.insert(polyline_.begin(), point);
     return true;
   }
   polyline_.push_back(point);
   return false;
+}
+
+void CutDetector::DropClusterFromCandidates() {
+  std::sort(cluster_.begin(), cluster_.end());
+  candidates_.erase(std::remove_if(candidates_.begin(), candidates_.end(),
+                                   [&](int k) {
+                                     return std::binary_search(cluster_.begin(), cluster_.end(), k);
+                                   }),
+                    candidates_.end());
+}
+
+double CutDetector::OpeningBalance(const DetectionResult& result) const {
+  // Per pair, how far each target lies outward of its model point along the pair.
+  double low = 0.0, high = 0.0;
+  for (int k : cluster_) {
+    const int l = result.pairs[k].first, m = result.pairs[k].second;
+    const Eigen::Vector3d along = model_mm_.row(m) - model_mm_.row(l);
+    const double length = along.norm();
+    if (length == 0.0) continue;
+    const Eigen::Vector3d u = along / length;
+    const double out_l = (model_mm_.row(l) - target_mm_.row(l)).dot(u);
+    const double out_m = (target_mm_.row(m) - model_mm_.row(m)).dot(u);
+    low += result.measure[k] * std::min(out_l, out_m);
+    high += result.measure[k] * std::max(out_l, out_m);
+  }
+  return high > 0.0 ? low / high : 0.0;
 }
 
 bool CutDetector::ExtremityAtBorder(bool front) const {

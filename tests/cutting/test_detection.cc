@@ -168,6 +168,14 @@ TEST(CutDetectorOptions, CheckNamesTheField) {
   o = {};
   o.min_outliers = 0;
   EXPECT_THROW(CutDetector{o}, Error);
+  o = {};
+  o.min_opening_balance = 1.5;
+  try {
+    o.Check();
+    FAIL() << "expected arreg::Error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("min_opening_balance"), std::string::npos) << e.what();
+  }
 }
 
 TEST(CutDetector, NeighbourGraphEqualsBruteForce) {
@@ -441,6 +449,8 @@ TEST(CutDetector, SlidingFeatureGivesNoCut) {
   for (bool reject : {true, false}) {
     CutDetectorOptions o;
     o.reject_lone_features = reject;
+    // A lone feature's star is also one-sided; without the balance test only this rule acts.
+    o.min_opening_balance = 0.0;
     CutDetector detector(o);
     detector.Initialize(g.p0, g.ids);
     std::mt19937 rng(8);
@@ -626,6 +636,130 @@ TEST(CutDetector, OnePixelNoiseGivesNoCut) {
     }
     EXPECT_EQ(cut_points, 0);
   }
+}
+
+// Targets of a 700-feature grid with 1 px noise, stretched uniformly to 150 % along y (the
+// model follows the stretch), and a region of features around (cx, 0) that the model does not
+// follow: features with |x - cx| < 6 mm and 0 < y < 10 mm are moved by `up_mm` along +y, and
+// those with -10 < y < 0 by -`down_mm`. up = down is a cut's two lips; down = 0 is a strain
+// concentration on one side (the model's coarse cells cannot follow it).
+RowMatX3d OpenRegion(const FeatureGrid& g, double cx, double up_mm, double down_mm,
+                     std::mt19937* rng) {
+  std::normal_distribution<double> noise(0.0, 0.25);
+  RowMatX3d target = g.p0;
+  for (int i = 0; i < g.p0.rows(); ++i) {
+    const double x = g.p0(i, 0), y = g.p0(i, 1);
+    target(i, 1) *= 1.5;
+    if (std::abs(x - cx) < 6.0 && std::abs(y) < 10.0) target(i, 1) += y > 0 ? up_mm : -down_mm;
+    target(i, 0) += noise(*rng);
+    target(i, 1) += noise(*rng);
+  }
+  return target;
+}
+
+RowMatX3d StretchedModel(const FeatureGrid& g) {
+  RowMatX3d model = g.p0;
+  model.col(1) *= 1.5;
+  return model;
+}
+
+TEST(CutDetector, OneSidedOpeningGivesNoCutPoint) {
+  const FeatureGrid g = MakeGrid();
+  const RowMatX3d model = StretchedModel(g);
+  for (double balance : {0.5, 0.0}) {
+    CutDetectorOptions o;
+    o.min_opening_balance = balance;
+    CutDetector detector(o);
+    detector.Initialize(g.p0, g.ids);
+    std::mt19937 rng(4);
+    DetectionResult r;
+    int cut_points = 0, one_sided = 0;
+    for (int k = 0; k < 10; ++k) {
+      detector.Update(MakeFrame(g, OpenRegion(g, 80.0, 5.0, 0.0, &rng), model), &r);
+      cut_points += static_cast<int>(r.new_cut_points.size());
+      one_sided += r.one_sided_clusters;
+    }
+    if (balance > 0.0) {
+      EXPECT_EQ(cut_points, 0);
+      EXPECT_GT(one_sided, 0);
+    } else {
+      EXPECT_GE(cut_points, 1);
+      EXPECT_EQ(one_sided, 0);
+    }
+  }
+  // The same opening shared by both sides (a cut's lips) is a cut point on the seam.
+  CutDetector detector;
+  detector.Initialize(g.p0, g.ids);
+  std::mt19937 rng(4);
+  DetectionResult r;
+  detector.Update(MakeFrame(g, OpenRegion(g, 80.0, 2.5, 2.5, &rng), model), &r);
+  ASSERT_EQ(r.new_cut_points.size(), 1u);
+  EXPECT_EQ(r.one_sided_clusters, 0);
+  EXPECT_NEAR(r.new_cut_points[0].initial_position_mm.x(), 80.0, 3.0);
+  EXPECT_NEAR(r.new_cut_points[0].initial_position_mm.y(), 0.0, 1.0);
+}
+
+// Polyline x-coordinates (frame 0) after cuts opening locally, one per frame, at `centres`.
+std::vector<double> PolylineAfterOpenings(const std::vector<double>& centres, bool extremities_only,
+                                          int* refused) {
+  const FeatureGrid g = MakeGrid();
+  const RowMatX3d model = StretchedModel(g);
+  CutDetectorOptions o;
+  o.grow_at_extremities_only = extremities_only;
+  CutDetector detector(o);
+  detector.Initialize(g.p0, g.ids);
+  std::mt19937 rng(6);
+  DetectionResult r;
+  *refused = 0;
+  for (double cx : centres) {
+    detector.Update(MakeFrame(g, OpenRegion(g, cx, 2.5, 2.5, &rng), model), &r);
+    *refused += r.refused_points;
+  }
+  std::vector<double> xs;
+  for (const CutPoint& p : detector.polyline()) xs.push_back(p.initial_position_mm.x());
+  return xs;
+}
+
+TEST(CutDetector, PointFarFromTheExtremitiesIsNotAppended) {
+  // r_F = 14.4 mm and r_pc = 6.72 mm on this grid: growth radius r_pc + 1.5 r_F = 28.3 mm.
+  int refused = 0;
+  std::vector<double> xs = PolylineAfterOpenings({40.0, 60.0, 130.0}, true, &refused);
+  ASSERT_EQ(xs.size(), 2u);
+  EXPECT_NEAR(xs[0], 40.0, 3.0);
+  EXPECT_NEAR(xs[1], 60.0, 3.0);
+  EXPECT_EQ(refused, 1);
+  xs = PolylineAfterOpenings({40.0, 60.0, 130.0}, false, &refused);
+  ASSERT_EQ(xs.size(), 3u);
+  EXPECT_NEAR(xs[2], 130.0, 3.0);
+  EXPECT_EQ(refused, 0);
+  // A lone point that did not grow is replaced by a far one, which then grows.
+  xs = PolylineAfterOpenings({130.0, 40.0, 60.0}, true, &refused);
+  ASSERT_EQ(xs.size(), 2u);
+  EXPECT_NEAR(xs[0], 40.0, 3.0);
+  EXPECT_NEAR(xs[1], 60.0, 3.0);
+  xs = PolylineAfterOpenings({130.0, 40.0, 60.0}, false, &refused);
+  ASSERT_EQ(xs.size(), 3u);
+  EXPECT_NEAR(xs[0], 130.0, 3.0);
+}
+
+TEST(CutDetector, PolylineDoesNotFoldBack) {
+  // The third opening lies between the two extremities: joining either end would reverse the
+  // polyline's direction there.
+  int refused = 0;
+  std::vector<double> xs = PolylineAfterOpenings({30.0, 55.0, 42.5}, true, &refused);
+  ASSERT_EQ(xs.size(), 2u);
+  EXPECT_EQ(refused, 1);
+  EXPECT_NEAR(xs[0], 30.0, 3.0);
+  EXPECT_NEAR(xs[1], 55.0, 3.0);
+  xs = PolylineAfterOpenings({30.0, 55.0, 42.5}, false, &refused);
+  ASSERT_EQ(xs.size(), 3u);
+  // Joined at the end it is nearer to: the polyline turns back onto itself.
+  EXPECT_NEAR(std::abs(xs[0] - 42.5) < std::abs(xs[2] - 42.5) ? xs[0] : xs[2], 42.5, 3.0);
+  // A point beyond the front extremity is still joined there.
+  xs = PolylineAfterOpenings({55.0, 75.0, 35.0}, true, &refused);
+  ASSERT_EQ(xs.size(), 3u);
+  EXPECT_NEAR(xs[0], 35.0, 3.0);
+  EXPECT_EQ(refused, 0);
 }
 
 // --- Cut surface -------------------------------------------------------------------------
