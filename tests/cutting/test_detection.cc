@@ -442,21 +442,22 @@ TEST(CutDetector, OnlyOpeningPairsAreOutliers) {
 
 // One feature slides on the image (0.5 mm per frame, too slow for a jump filter) away from its
 // neighbours at -x while the model stays: every pair towards them opens, a star of outliers
-// around one feature. By default that is no cut; without the lone-feature test it is one.
+// around one feature. By default that is no cut; without the lone-feature test it is one. The
+// star is one-sided too, so the opening-balance test alone also rejects it.
 TEST(CutDetector, SlidingFeatureGivesNoCut) {
   const FeatureGrid g = MakeGrid();
   const int sliding = 10 * 35 + 17;  // mid-grid
-  for (bool reject : {true, false}) {
+  for (int variant = 0; variant < 3; ++variant) {
+    const bool reject = variant != 1;
     CutDetectorOptions o;
-    o.reject_lone_features = reject;
-    // A lone feature's star is also one-sided; without the balance test only this rule acts.
-    o.min_opening_balance = 0.0;
+    o.reject_lone_features = variant == 0;
+    o.min_opening_balance = variant == 2 ? 0.5 : 0.0;
     CutDetector detector(o);
     detector.Initialize(g.p0, g.ids);
     std::mt19937 rng(8);
     std::normal_distribution<double> noise(0.0, 0.25);
     DetectionResult r;
-    int cut_points = 0, lone = 0;
+    int cut_points = 0, lone = 0, one_sided = 0;
     for (int k = 1; k <= 40; ++k) {
       RowMatX3d target = g.p0;
       for (int i = 0; i < target.rows(); ++i) {
@@ -467,10 +468,12 @@ TEST(CutDetector, SlidingFeatureGivesNoCut) {
       detector.Update(MakeFrame(g, target, g.p0), &r);
       cut_points += static_cast<int>(r.new_cut_points.size());
       lone += r.lone_features;
+      one_sided += r.one_sided_clusters;
     }
+    SCOPED_TRACE("variant " + std::to_string(variant));
     if (reject) {
       EXPECT_EQ(cut_points, 0);
-      EXPECT_GT(lone, 0);
+      EXPECT_GT(variant == 0 ? lone : one_sided, 0);
     } else {
       EXPECT_GE(cut_points, 1);
       EXPECT_EQ(lone, 0);
