@@ -203,27 +203,26 @@ int8_t SurfDetector::LaplacianSign(const Layer& layer, int y, int x) const {
 namespace {
 
 // Per row of a rows x cols sample grid, the column intervals covered by
-// `boxes` (sample coordinates, clipped to the grid), merged where they overlap or touch.
-void SpansOfBoxes(const std::vector<cv::Rect>& boxes, int rows, int cols,
+// `boxes` (sample coordinates, clipped to the grid), merged where they overlap
+// or touch. Boxes taken in order of their left edge reach every row in order,
+// so each merges with the row's last interval or starts a new one.
+void SpansOfBoxes(std::vector<cv::Rect>* boxes, int rows, int cols,
                   std::vector<std::vector<std::pair<int, int>>>* spans) {
   spans->resize(rows);
   for (auto& row : *spans) row.clear();
   const cv::Rect grid(0, 0, cols, rows);
-  for (const cv::Rect& box : boxes) {
-    const cv::Rect b = box & grid;
-    for (int y = b.y; y < b.br().y; ++y) (*spans)[y].emplace_back(b.x, b.br().x);
-  }
-  for (auto& row : *spans) {
-    if (row.size() < 2) continue;
-    std::sort(row.begin(), row.end());
-    size_t kept = 0;
-    for (size_t k = 1; k < row.size(); ++k) {
-      if (row[k].first <= row[kept].second)
-        row[kept].second = std::max(row[kept].second, row[k].second);
+  for (cv::Rect& box : *boxes) box &= grid;
+  std::sort(boxes->begin(), boxes->end(),
+            [](const cv::Rect& a, const cv::Rect& b) { return a.x < b.x; });
+  for (const cv::Rect& b : *boxes) {
+    if (b.empty()) continue;
+    for (int y = b.y; y < b.br().y; ++y) {
+      auto& row = (*spans)[y];
+      if (!row.empty() && b.x <= row.back().second)
+        row.back().second = std::max(row.back().second, b.br().x);
       else
-        row[++kept] = row[k];
+        row.emplace_back(b.x, b.br().x);
     }
-    row.resize(kept + 1);
   }
 }
 
@@ -254,7 +253,8 @@ void SurfDetector::DetectIn(const cv::Mat& mask, const std::vector<cv::Point2f>*
   const float threshold = static_cast<float>(options_.hessian_threshold);
   // Near centres: maxima are looked for on `maxima` and responses computed on
   // `responses` (the same samples and their 3 x 3 neighbours).
-  RowSpans maxima, responses;
+  RowSpans& maxima = maxima_spans_;
+  RowSpans& responses = response_spans_;
   std::vector<cv::Rect> boxes;
   for (int o = 0; o < options_.octaves; ++o) {
     const int step = options_.initial_sample_step << o;
@@ -271,9 +271,11 @@ void SurfDetector::DetectIn(const cv::Mat& mask, const std::vector<cv::Point2f>*
         const int y1 = static_cast<int>(std::ceil((c.y + radius_px) / step + 0.5f));
         boxes.emplace_back(x0, y0, x1 - x0 + 1, y1 - y0 + 1);
       }
-      SpansOfBoxes(boxes, rows, cols, &maxima);
-      for (cv::Rect& b : boxes) b = cv::Rect(b.x - 1, b.y - 1, b.width + 2, b.height + 2);
-      SpansOfBoxes(boxes, rows, cols, &responses);
+      std::vector<cv::Rect> dilated;
+      for (const cv::Rect& b : boxes)
+        dilated.emplace_back(b.x - 1, b.y - 1, b.width + 2, b.height + 2);
+      SpansOfBoxes(&boxes, rows, cols, &maxima);
+      SpansOfBoxes(&dilated, rows, cols, &responses);
     }
     std::vector<Layer>& layers = octaves_[o];
     layers.resize(num_layers);

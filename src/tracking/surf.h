@@ -99,6 +99,7 @@ class SurfDetector {
   std::vector<uint32_t>
       integral_;  // (rows+1) x (cols+1), wrapping sums: box differences stay exact
   std::vector<std::vector<Layer>> octaves_;
+  RowSpans maxima_spans_, response_spans_;  // DetectNear's, kept to avoid reallocation
 };
 
 }  // namespace arreg

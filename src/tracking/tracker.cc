@@ -243,10 +243,21 @@ void NearestNeighbours(const std::vector<cv::Point2f>& points, int k,
           if (ring == 0) break;
         }
       }
-      // Cells beyond this ring are at least ring * cell away.
-      const float reach = ring * cell;
-      if ((static_cast<int>(best.size()) == k && best.front().first <= reach * reach) ||
-          (ring > cols && ring > rows))
+      // Points outside the rings searched are at least as far as the block's
+      // nearest side that still has cells beyond it (at least ring * cell,
+      // often nearly a cell more: ring 1 then suffices where ring * cell would
+      // search ring 2 too, with twice the points). The margin covers a point
+      // that float rounding put in the cell beside.
+      const float inf = std::numeric_limits<float>::infinity();
+      const cv::Point2f p = points[i] - lo;
+      float reach = inf;
+      if (cx - ring > 0) reach = std::min(reach, p.x - (cx - ring) * cell);
+      if (cx + ring + 1 < cols) reach = std::min(reach, (cx + ring + 1) * cell - p.x);
+      if (cy - ring > 0) reach = std::min(reach, p.y - (cy - ring) * cell);
+      if (cy + ring + 1 < rows) reach = std::min(reach, (cy + ring + 1) * cell - p.y);
+      if (reach == inf) break;  // every cell searched
+      reach -= 1e-3f * cell;
+      if (static_cast<int>(best.size()) == k && reach > 0 && best.front().first <= reach * reach)
         break;
     }
     for (int j = 0; j < k; ++j) (*neighbours)[static_cast<size_t>(i) * k + j] = best[j].second;

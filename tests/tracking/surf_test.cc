@@ -277,7 +277,9 @@ TEST(Surf, DetectNearEqualsTheWholeImagesPointsNearTheCentres) {
               break;
             }
         surf.DetectNear(mask, centres, radius, &actual);
-        if (radius > 20) ASSERT_GT(expected.size(), 20u);
+        if (radius > 20) {
+          ASSERT_GT(expected.size(), 20u);
+        }
         ASSERT_EQ(actual.size(), expected.size()) << "radius " << radius;
         for (size_t i = 0; i < expected.size(); ++i) {
           EXPECT_EQ(actual[i].position_px, expected[i].position_px) << i;
