@@ -264,11 +264,11 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
       point.initial_position_mm = initial / weight;
       point.frame = frame_;
       point.num_outliers = static_cast<int>(cluster_.size());
-      // Behind a cut polyline's extremities the model is cut and follows the lips, so pairs
-      // from there to the uncut part ahead are one-sided by construction: the balance is only
-      // asked of a cluster where the model is whole.
+      // Only a point that would start a polyline must show both lips: one that grows it is
+      // corroborated by the cut point next to it, behind which the model may already be cut
+      // (pairs from the cut part to the whole part ahead are one-sided by construction).
       if (options_.cluster_outliers && options_.min_opening_balance > 0.0 &&
-          !(polyline_.size() >= 2 &&
+          !(!polyline_.empty() &&
             (NearExtremity(point, polyline_.front()) || NearExtremity(point, polyline_.back()))) &&
           OpeningBalance(*result) < options_.min_opening_balance) {
         ++result->one_sided_clusters;

@@ -97,13 +97,15 @@ struct CutDetectorOptions {
   // points (balance 0.55-0.85 on the synthetic cuts); at a strain concentration the coarse model
   // cannot follow (the re-entrant corners of a band stretched to 166-186 %) the error sits on
   // the features of the concentrated region (balance 0.09-0.40 there). Such a cluster's pairs
-  // leave the candidates of this frame and the cluster is selected again. Only asked where the
-  // model is whole: not near the extremities of a polyline of two or more points, behind which
-  // the model has been cut and follows the lips (pairs from there to the uncut part ahead are
-  // one-sided by construction; on the unit tests' seam that delayed the growth). The bound 1/2 is
-  // the one reject_lone_features applies to a single feature (partners less than half as far off),
-  // extended to several features on the same side. Not in the thesis; only with
-  // cluster_outliers; 0 disables. Default 0.5.
+  // leave the candidates of this frame and the cluster is selected again. Only asked of a
+  // point that would start a polyline (none yet, or one farther than the growth radius from a
+  // lone point, see grow_at_extremities_only): a point that grows a polyline is corroborated by
+  // the cut point next to it, behind which the model may be cut already (pairs from the cut
+  // part to the whole part ahead are one-sided by construction), and a lip on the fixed side
+  // of an object barely moves (band-cut-s: a growth cluster next to the first point was
+  // rejected and the cut was found 6 frames later). The bound 1/2 is the one reject_lone_features
+  // applies to a single feature (partners less than half as far off), extended to several features
+  // on the same side. Not in the thesis; only with cluster_outliers; 0 disables. Default 0.5.
   double min_opening_balance = 0.5;
   // The polyline grows only at its extremities (thesis 7.5.3): a cut point farther than
   // r_pc + 1.5 r_F (frame-0 coordinates) from both extremities is no growth of it. The next
