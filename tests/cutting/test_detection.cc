@@ -156,26 +156,24 @@ SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOp
 }
 
 TEST(CutDetectorOptions, CheckNamesTheField) {
+  EXPECT_NO_THROW(CutDetectorOptions{}.Check());
+  const auto expect_named = [](const CutDetectorOptions& o, const std::string& field) {
+    try {
+      o.Check();
+      ADD_FAILURE() << "expected arreg::Error naming " << field;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
   CutDetectorOptions o;
-  EXPECT_NO_THROW(o.Check());
   o.outlier_factor = 0.0;
-  try {
-    o.Check();
-    FAIL() << "expected arreg::Error";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("outlier_factor"), std::string::npos) << e.what();
-  }
+  expect_named(o, "outlier_factor");
   o = {};
   o.min_outliers = 0;
   EXPECT_THROW(CutDetector{o}, Error);
   o = {};
   o.min_opening_balance = 1.5;
-  try {
-    o.Check();
-    FAIL() << "expected arreg::Error";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("min_opening_balance"), std::string::npos) << e.what();
-  }
+  expect_named(o, "min_opening_balance");
 }
 
 TEST(CutDetector, NeighbourGraphEqualsBruteForce) {
@@ -666,60 +664,62 @@ RowMatX3d StretchedModel(const FeatureGrid& g) {
   return model;
 }
 
-TEST(CutDetector, OneSidedOpeningGivesNoCutPoint) {
+struct OpeningRun {
+  std::vector<CutPoint> polyline;
+  int cut_points = 0, one_sided = 0, refused = 0;  // summed over the frames
+};
+
+// One frame per entry of `centres`, each opening the region around it (OpenRegion).
+OpeningRun RunOpenings(const std::vector<double>& centres, double up_mm, double down_mm,
+                       const CutDetectorOptions& options, unsigned seed) {
   const FeatureGrid g = MakeGrid();
   const RowMatX3d model = StretchedModel(g);
+  CutDetector detector(options);
+  detector.Initialize(g.p0, g.ids);
+  std::mt19937 rng(seed);
+  DetectionResult r;
+  OpeningRun run;
+  for (double cx : centres) {
+    detector.Update(MakeFrame(g, OpenRegion(g, cx, up_mm, down_mm, &rng), model), &r);
+    run.cut_points += static_cast<int>(r.new_cut_points.size());
+    run.one_sided += r.one_sided_clusters;
+    run.refused += r.refused_points;
+  }
+  run.polyline = detector.polyline();
+  return run;
+}
+
+TEST(CutDetector, OneSidedOpeningGivesNoCutPoint) {
+  const std::vector<double> same_place(10, 80.0);
   for (double balance : {0.5, 0.0}) {
     CutDetectorOptions o;
     o.min_opening_balance = balance;
-    CutDetector detector(o);
-    detector.Initialize(g.p0, g.ids);
-    std::mt19937 rng(4);
-    DetectionResult r;
-    int cut_points = 0, one_sided = 0;
-    for (int k = 0; k < 10; ++k) {
-      detector.Update(MakeFrame(g, OpenRegion(g, 80.0, 5.0, 0.0, &rng), model), &r);
-      cut_points += static_cast<int>(r.new_cut_points.size());
-      one_sided += r.one_sided_clusters;
-    }
+    const OpeningRun run = RunOpenings(same_place, 5.0, 0.0, o, 4);
     if (balance > 0.0) {
-      EXPECT_EQ(cut_points, 0);
-      EXPECT_GT(one_sided, 0);
+      EXPECT_EQ(run.cut_points, 0);
+      EXPECT_GT(run.one_sided, 0);
     } else {
-      EXPECT_GE(cut_points, 1);
-      EXPECT_EQ(one_sided, 0);
+      EXPECT_GE(run.cut_points, 1);
+      EXPECT_EQ(run.one_sided, 0);
     }
   }
   // The same opening shared by both sides (a cut's lips) is a cut point on the seam.
-  CutDetector detector;
-  detector.Initialize(g.p0, g.ids);
-  std::mt19937 rng(4);
-  DetectionResult r;
-  detector.Update(MakeFrame(g, OpenRegion(g, 80.0, 2.5, 2.5, &rng), model), &r);
-  ASSERT_EQ(r.new_cut_points.size(), 1u);
-  EXPECT_EQ(r.one_sided_clusters, 0);
-  EXPECT_NEAR(r.new_cut_points[0].initial_position_mm.x(), 80.0, 3.0);
-  EXPECT_NEAR(r.new_cut_points[0].initial_position_mm.y(), 0.0, 1.0);
+  const OpeningRun run = RunOpenings({80.0}, 2.5, 2.5, CutDetectorOptions(), 4);
+  ASSERT_EQ(run.polyline.size(), 1u);
+  EXPECT_EQ(run.one_sided, 0);
+  EXPECT_NEAR(run.polyline[0].initial_position_mm.x(), 80.0, 3.0);
+  EXPECT_NEAR(run.polyline[0].initial_position_mm.y(), 0.0, 1.0);
 }
 
 // Polyline x-coordinates (frame 0) after cuts opening locally, one per frame, at `centres`.
 std::vector<double> PolylineAfterOpenings(const std::vector<double>& centres, bool extremities_only,
                                           int* refused) {
-  const FeatureGrid g = MakeGrid();
-  const RowMatX3d model = StretchedModel(g);
   CutDetectorOptions o;
   o.grow_at_extremities_only = extremities_only;
-  CutDetector detector(o);
-  detector.Initialize(g.p0, g.ids);
-  std::mt19937 rng(6);
-  DetectionResult r;
-  *refused = 0;
-  for (double cx : centres) {
-    detector.Update(MakeFrame(g, OpenRegion(g, cx, 2.5, 2.5, &rng), model), &r);
-    *refused += r.refused_points;
-  }
+  const OpeningRun run = RunOpenings(centres, 2.5, 2.5, o, 6);
+  *refused = run.refused;
   std::vector<double> xs;
-  for (const CutPoint& p : detector.polyline()) xs.push_back(p.initial_position_mm.x());
+  for (const CutPoint& p : run.polyline) xs.push_back(p.initial_position_mm.x());
   return xs;
 }
 
