@@ -88,7 +88,7 @@ int RunRun(int argc, char** argv) {
   parser.AddDouble("stiffness", &stiffness, "N_PER_M",
                    "absolute feature spring stiffness (default: from --stiffness-relative)");
   parser.AddDouble("stiffness-relative", &stiffness_relative, "KAPPA",
-                   "springs' total stiffness / (E x volume / seen area) (default 150)");
+                   "springs' total stiffness / (E x volume / seen area) (default 170)");
   parser.AddInt("substeps", &substeps, "N", "implicit Euler sub-steps per frame (default 1)");
   parser.AddString("lifting", &lifting, "surface|plane", "lifting target (default surface)");
   parser.AddString("lift-update", &lift_update, "intercept|raycast",

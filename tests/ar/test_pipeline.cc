@@ -181,7 +181,7 @@ TEST(Pipeline, StaticVideoKeepsModelInPlaceAndRecordsAreComplete) {
   EXPECT_NEAR(mech.at("spring_model_volume_mm3").get<double>(), 36000.0, 1e-6);
   EXPECT_NEAR(mech.at("spring_visible_area_mm2").get<double>(), 3600.0, 1e-6);
   EXPECT_NEAR(mech.at("spring_stiffness_resolved_n_per_m").get<double>(),
-              150.0 * 5000.0 * 10.0 / attached * 1e-3, 1e-9);
+              170.0 * 5000.0 * 10.0 / attached * 1e-3, 1e-9);
   VideoReader overlay;
   overlay.Open(out + "/overlay.mp4");
   EXPECT_EQ(overlay.frame_count(), 8);
@@ -342,7 +342,7 @@ TEST(PipelineOptions, SpringStiffnessKeysRoundTrip) {
   Scene scene;
   scene.path = "scene.json";
   PipelineOptions o = ReadPipelineOptions(scene);
-  EXPECT_DOUBLE_EQ(o.mechanics.spring_stiffness_relative, 150.0);
+  EXPECT_DOUBLE_EQ(o.mechanics.spring_stiffness_relative, 170.0);
   EXPECT_DOUBLE_EQ(o.mechanics.spring_stiffness_n_per_m, 0.0);  // no override
   scene.mechanics = {{"spring_stiffness_relative", 40.0}, {"spring_stiffness_n_per_m", 800.0}};
   o = ReadPipelineOptions(scene);
@@ -368,14 +368,14 @@ TEST(PipelineOptions, SpringStiffnessKeysRoundTrip) {
 
 // k = kappa x E x V / (A x N): linear in kappa, E and V, inverse in A and N; the documented
 // reference (docs/pipeline.md): band-stretch, E = 100 kPa, V = 86,400 mm^3, A = 10,960 mm^2
-// facing the camera, 232 springs gives 510 N/m at the default kappa 150.
+// facing the camera, 232 springs gives 578 N/m at the default kappa 170.
 TEST(SpringStiffness, ScalesWithModulusVolumeAreaAndSprings) {
   const MechanicsStageOptions o;
   const double e = 1e5, v = 86400.0, a = 10960.0;
   const int n = 232;
   const SpringStiffness ref = ResolveSpringStiffness(o, e, v, a, n);
   EXPECT_TRUE(ref.relative);
-  EXPECT_NEAR(ref.n_per_m, 509.7, 0.05);
+  EXPECT_NEAR(ref.n_per_m, 577.6, 0.05);
   // Ten times stiffer material: ten times stiffer springs (band-cut-s's 1 MPa).
   EXPECT_NEAR(ResolveSpringStiffness(o, 10 * e, v, a, n).n_per_m, 10 * ref.n_per_m, 1e-9);
   EXPECT_NEAR(ResolveSpringStiffness(o, 0.2 * e, v, a, n).n_per_m, 0.2 * ref.n_per_m, 1e-9);
@@ -385,7 +385,7 @@ TEST(SpringStiffness, ScalesWithModulusVolumeAreaAndSprings) {
   EXPECT_NEAR(ResolveSpringStiffness(o, e, v, 2 * a, n).n_per_m, 0.5 * ref.n_per_m, 1e-9);
   EXPECT_NEAR(ResolveSpringStiffness(o, e, v, a, 2 * n).n_per_m, 0.5 * ref.n_per_m, 1e-9);
   MechanicsStageOptions twice = o;
-  twice.spring_stiffness_relative = 300.0;
+  twice.spring_stiffness_relative = 340.0;
   EXPECT_NEAR(ResolveSpringStiffness(twice, e, v, a, n).n_per_m, 2 * ref.n_per_m, 1e-9);
   EXPECT_DOUBLE_EQ(ResolveSpringStiffness(o, e, v, a, 0).n_per_m, 0.0);  // nothing attached
   // The absolute override ignores material and geometry.

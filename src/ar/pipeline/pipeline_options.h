@@ -22,12 +22,13 @@ struct MechanicsStageOptions {
   // stiffness N x k over the model's elastic stiffness scale E x V / A (E Young's modulus, V
   // rest volume, A area of the surface facing the camera at frame 0, so V / A is the depth of
   // tissue under the seen surface: a slab's thickness, a compact organ's size), i.e. each of
-  // the N springs attached at frame 0 gets k = kappa x E x V / (A x N). Default 150: the
+  // the N springs attached at frame 0 gets k = kappa x E x V / (A x N). Default 170: the
   // image coupling dominates the elastic response of the whole organ (the model lags a global
   // target motion by ~1 / (1 + kappa) of it) while elasticity still interpolates between
-  // features; it gives the ~500 N/m validated on the 100 kPa band and the 20 kPa kidney
-  // scenes, and ten times that on the 1 MPa band (docs/pipeline.md, "Spring stiffness").
-  double spring_stiffness_relative = 150.0;
+  // features; it is the median of what the validated 500 N/m was on the 100 kPa band and
+  // 20 kPa kidney scenes (144-200), and gives ten times that on the 1 MPa band
+  // (docs/pipeline.md, "Spring stiffness").
+  double spring_stiffness_relative = 170.0;
   // Absolute stiffness of each feature spring [N/m = mN/mm], overriding the relative one when
   // > 0 (`--stiffness`); default 0 (use spring_stiffness_relative).
   double spring_stiffness_n_per_m = 0.0;
