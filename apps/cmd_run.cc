@@ -60,7 +60,8 @@ int RunRun(int argc, char** argv) {
   bool show_features = false, show_targets = false, show_springs = false, no_render = false;
   bool record_debug = false;
   int frames = -1, save_every = 0, supersampling = 0, substeps = 0, crf = -1;
-  double stiffness = 0, stiffness_relative = 0, opacity = -1;
+  double stiffness = 0, opacity = -1;
+  double stiffness_relative = pipeline::MechanicsStageOptions().spring_stiffness_relative;
   OptionParser parser(
       "arreg run --scene S.json --out DIR [options]",
       "Registers the scene's organ model to its video: tracks features, lifts them to 3D, "
@@ -86,9 +87,9 @@ int RunRun(int argc, char** argv) {
                 "supersampled reference renderer");
   parser.AddInt("crf", &crf, "Q", "x264 quality of overlay.mp4 (default 23)");
   parser.AddDouble("stiffness", &stiffness, "N_PER_M",
-                   "absolute feature spring stiffness (default: from --stiffness-relative)");
+                   "absolute feature spring stiffness; 0 = from --stiffness-relative");
   parser.AddDouble("stiffness-relative", &stiffness_relative, "KAPPA",
-                   "springs' total stiffness / (E x volume / seen area) (default 170)");
+                   "springs' total stiffness / (E x volume / seen area), dimensionless");
   parser.AddInt("substeps", &substeps, "N", "implicit Euler sub-steps per frame (default 1)");
   parser.AddString("lifting", &lifting, "surface|plane", "lifting target (default surface)");
   parser.AddString("lift-update", &lift_update, "intercept|raycast",
