@@ -2,6 +2,7 @@
 // the real recorder and cut detector (test_debug_fixture.h).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -99,12 +100,14 @@ TEST(DebugRecorder, ProjectionsMatchTheCamera) {
     }
     const double shift = p0[row].x() > fixture::kCutXMm ? fixture::kOpeningMmPerFrame * t : 0.0;
     const Eigen::Vector2d target = camera.Project(p0[row] + Eigen::Vector3d(shift, 0, 0));
-    const Eigen::Vector2d model = camera.Project(p0[row] + Eigen::Vector3d(0.5 * shift, 0, 0));
+    const Eigen::Vector2d model =
+        camera.Project(p0[row] + Eigen::Vector3d(fixture::ModelShiftMm(t), 0, 0));
     EXPECT_NEAR(f["target_px"][0].get<double>(), target.x(), 0.006);
     EXPECT_NEAR(f["target_px"][1].get<double>(), target.y(), 0.006);
     EXPECT_NEAR(f["model_px"][0].get<double>(), model.x(), 0.006);
     if (static_cast<int>(row) != fixture::kLostRow) {
-      EXPECT_NEAR(f["spring_length_mm"].get<double>(), 0.5 * shift, 1e-4);
+      EXPECT_NEAR(f["spring_length_mm"].get<double>(), std::abs(shift - fixture::ModelShiftMm(t)),
+                  1e-4);
     }
   }
   EXPECT_EQ(rec["features"][fixture::kLostRow]["status"], "lost-flow");

@@ -22,6 +22,10 @@ constexpr int kWidth = 320, kHeight = 256;
 constexpr double kDepthMm = 200.0;
 constexpr double kCutXMm = 5.0;  // features right of x = 5 mm drift away
 constexpr double kOpeningMmPerFrame = 2.0;
+// The uncut model, held by the springs of both sides, lies half-way across the opening: each
+// lip's target is half the opening from its model point, as across a real cut (the detector
+// asks a new cut of both lips, cutting::CutDetectorOptions::min_opening_balance).
+inline double ModelShiftMm(int frame) { return 0.5 * kOpeningMmPerFrame * frame; }
 constexpr int kUnattachedRow = 3;  // never attached: detector indices skip it
 constexpr int kLostRow = 10;       // lost at frame kLostFrame
 constexpr int kLostFrame = 2;
@@ -139,7 +143,7 @@ inline std::vector<cutting::DetectionResult> RecordRun(const std::string& run_di
     for (int r = 0; r < nf; ++r) {
       const double shift = p0[r].x() > kCutXMm ? kOpeningMmPerFrame * t : 0.0;
       const Eigen::Vector3d target = p0[r] + Eigen::Vector3d(shift, 0, 0);
-      const Eigen::Vector3d anchor = p0[r] + Eigen::Vector3d(0.5 * shift, 0, 0);
+      const Eigen::Vector3d anchor = p0[r] + Eigen::Vector3d(ModelShiftMm(t), 0, 0);
       targets.row(r) = target.transpose();
       anchors.row(r) = anchor.transpose();
       pipeline::FeatureView& v = features[r];
