@@ -99,18 +99,18 @@ TEST_P(EndToEndCut, RegistrationWithAndWithoutTopology) {
 }
 
 // Thresholds: what holds here (72 frames, seed 1) and at 120 frames on seeds 1 and 2, with the
-// default detector parameters on every scene (docs/detection.md, "End-to-end results"). Measured
-// here: kidney-cut 2 cuts, 0.953 vs 0.905 without, Hausdorff means lower; band-cut-v no cut,
-// 0.851 both (one cut at 120 frames, +0.038 / +0.034); band-cut-s 2 cuts, 0.848 vs 0.829;
-// band-precut-side 2 cuts, 0.916 vs 0.919; band-precut-middle 1 cut, 0.957 vs 0.957 (at 120
-// frames -0.006 / -0.024: cut points at the stem). Issue 7 asks for Dice >= 0.95 and gains of
-// +0.15 / +0.06: not met.
+// default detector and spring parameters on every scene (docs/detection.md, "End-to-end
+// results"). Measured here: kidney-cut 2 cuts, 0.952 vs 0.903 without, Hausdorff means lower
+// (at 120 frames +0.049 / +0.010); band-cut-v no cut, 0.849 both (at 120 frames seed 2 one cut,
+// +0.034); band-cut-s 2 cuts, 0.926 vs 0.892 (+0.040 / +0.028); band-precut-side 1 cut, 0.937
+// vs 0.919 (+0.028 / +0.026); band-precut-middle 1 cut, 0.957 vs 0.957 (+0.002 / -0.001). Issue
+// 7 asks for Dice >= 0.95 and gains of +0.15 / +0.06: not met.
 INSTANTIATE_TEST_SUITE_P(Scenarios, EndToEndCut,
                          ::testing::Values(CutCase{"kidney-cut", 72, 1, 0.92, 0.005, true},
                                            CutCase{"band-cut-v", 72, 0, 0.84, 0.0, false},
-                                           CutCase{"band-cut-s", 72, 1, 0.84, 0.015, false},
-                                           CutCase{"band-precut-side", 72, 1, 0.91, -0.005, false},
-                                           CutCase{"band-precut-middle", 72, 1, 0.93, -0.03,
+                                           CutCase{"band-cut-s", 72, 1, 0.90, 0.02, false},
+                                           CutCase{"band-precut-side", 72, 1, 0.92, 0.01, false},
+                                           CutCase{"band-precut-middle", 72, 1, 0.94, -0.005,
                                                    false}),
                          [](const ::testing::TestParamInfo<CutCase>& info) {
                            std::string name = info.param.scenario;
