@@ -319,20 +319,6 @@ std::vector<bool> SpatioTemporalOutliers(const std::vector<cv::Point2f>& positio
                                          const std::vector<cv::Point2f>& displacements_px,
                                          const OutlierFilterOptions& options);
 
-// The SURF points of `gray` (CV_8UC1; inside `roi_mask`, CV_8UC1 of its size,
-// or everywhere when empty) within `radius_px` of one of `centres`, strongest
-// first: the points that detecting the whole image with `options` and keeping
-// those near a centre gives (positions equal up to float rounding), but
-// computed on crops around the centres only (merged where they overlap, the
-// whole image when they would cover more). Orientations are not assigned
-// (angle 0: they would see the crops' edges) and options.max_keypoints is ignored.
-// Returns false, detecting nothing, when the crops would sum to more than
-// `max_area_fraction` of the image (the caller may then rather detect on the
-// whole image it has at hand).
-bool DetectSurfNear(const SurfOptions& options, const cv::Mat& gray, const cv::Mat& roi_mask,
-                    const std::vector<cv::Point2f>& centres, float radius_px,
-                    std::vector<SurfKeypoint>* keypoints, double max_area_fraction = 1.0);
-
 // Highlight mask (CV_8UC1, 255 on highlight pixels) of a BGR or grey image.
 cv::Mat SpecularMask(const cv::Mat& image, const SpecularOptions& options);
 

@@ -342,45 +342,6 @@ TEST(FeatureTracker, SearchingNearThePredictionsFindsWhatTheWholeFrameFinds) {
   }
 }
 
-TEST(DetectSurfNear, FindsTheWholeImagesPointsNearTheCentres) {
-  const cv::Mat image = Texture(512, 640, 31);
-  SurfOptions options = FeatureTrackerOptions().surf;
-  options.upright = true;
-  cv::Mat roi(image.size(), CV_8UC1, cv::Scalar(0));
-  cv::circle(roi, cv::Point(330, 250), 230, cv::Scalar(255), -1);
-  // Near the corners and edges, one alone in the middle, two that overlap.
-  const std::vector<cv::Point2f> centres = {{6, 5},     {634, 507}, {320, 3},  {320, 256},
-                                            {150, 400}, {170, 395}, {500, 120}};
-  const float radius = 24;
-  for (const cv::Mat& mask : {cv::Mat(), roi}) {
-    SurfDetector whole(options);
-    whole.SetImage(image);
-    std::vector<SurfKeypoint> all, expected, actual;
-    whole.Detect(mask, &all);
-    for (const SurfKeypoint& kp : all)
-      for (const cv::Point2f& c : centres)
-        if (cv::norm(kp.position_px - c) <= radius) {
-          expected.push_back(kp);
-          break;
-        }
-    ASSERT_TRUE(DetectSurfNear(options, image, mask, centres, radius, &actual));
-    ASSERT_GT(expected.size(), 20u);
-    ASSERT_EQ(actual.size(), expected.size());
-    for (size_t i = 0; i < expected.size(); ++i) {
-      EXPECT_LT(cv::norm(actual[i].position_px - expected[i].position_px), 1e-3) << i;
-      EXPECT_EQ(actual[i].scale_px, expected[i].scale_px);
-      EXPECT_EQ(actual[i].response, expected[i].response);
-      EXPECT_EQ(actual[i].laplacian_sign, expected[i].laplacian_sign);
-      EXPECT_EQ(actual[i].octave, expected[i].octave);
-    }
-  }
-  // Seven windows of ~300 x 300 px cover more than a tenth of the image: the
-  // caller is told to detect on the whole image instead.
-  std::vector<SurfKeypoint> none;
-  EXPECT_FALSE(DetectSurfNear(options, image, cv::Mat(), centres, radius, &none, 0.1));
-  EXPECT_TRUE(none.empty());
-}
-
 TEST(FeatureTracker, ADifferentPatchBehindTheOccluderIsNotReidentified) {
   const OccludedPatch video(/*same=*/false);
   FeatureTracker tracker;
