@@ -59,9 +59,13 @@ int RunRun(int argc, char** argv) {
   bool no_topology = false, no_video = false, png = false, quiet = false, wireframe = false;
   bool show_features = false, show_targets = false, show_springs = false, no_render = false;
   bool record_debug = false;
-  int frames = -1, save_every = 0, supersampling = 0, substeps = 0, crf = -1;
-  double stiffness = 0, opacity = -1;
-  double stiffness_relative = pipeline::MechanicsStageOptions().spring_stiffness_relative;
+  // Shown as the defaults in --help; applied only when given (the scene's values stand otherwise).
+  const pipeline::MechanicsStageOptions mechanics_defaults;
+  const pipeline::RenderStageOptions render_defaults;
+  int frames = -1, save_every = 0, supersampling = render_defaults.supersampling;
+  int substeps = mechanics_defaults.substeps, crf = pipeline::OutputStageOptions().crf;
+  double stiffness = 0, opacity = render_defaults.organ_opacity;
+  double stiffness_relative = mechanics_defaults.spring_stiffness_relative;
   OptionParser parser(
       "arreg run --scene S.json --out DIR [options]",
       "Registers the scene's organ model to its video: tracks features, lifts them to 3D, "
@@ -81,16 +85,16 @@ int RunRun(int argc, char** argv) {
   parser.AddFlag("show-features", &show_features, "draw the tracked features");
   parser.AddFlag("show-targets", &show_targets, "draw the lifted targets");
   parser.AddFlag("show-springs", &show_springs, "draw the springs (anchor to target)");
-  parser.AddDouble("opacity", &opacity, "A", "organ opacity in [0, 1] (default 0.35)");
+  parser.AddDouble("opacity", &opacity, "A", "organ opacity in [0, 1]");
   parser.AddInt("supersampling", &supersampling, "S",
-                "1: one sample per pixel with analytic edge anti-aliasing (default); 2..8: "
+                "1: one sample per pixel with analytic edge anti-aliasing; 2..8: "
                 "supersampled reference renderer");
-  parser.AddInt("crf", &crf, "Q", "x264 quality of overlay.mp4 (default 23)");
+  parser.AddInt("crf", &crf, "Q", "x264 quality of overlay.mp4 (0..51)");
   parser.AddDouble("stiffness", &stiffness, "N_PER_M",
                    "absolute feature spring stiffness; 0 = from --stiffness-relative");
   parser.AddDouble("stiffness-relative", &stiffness_relative, "KAPPA",
                    "springs' total stiffness / (E x volume / seen area), dimensionless");
-  parser.AddInt("substeps", &substeps, "N", "implicit Euler sub-steps per frame (default 1)");
+  parser.AddInt("substeps", &substeps, "N", "implicit Euler sub-steps per frame");
   parser.AddString("lifting", &lifting, "surface|plane", "lifting target (default surface)");
   parser.AddString("lift-update", &lift_update, "intercept|raycast",
                    "surface target update (default intercept, thesis eq. 7.1)");
