@@ -267,9 +267,9 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
       // Only a point that would start a polyline must show both lips: one that grows it is
       // corroborated by the cut point next to it, behind which the model may already be cut
       // (pairs from the cut part to the whole part ahead are one-sided by construction).
-      if (options_.cluster_outliers && options_.min_opening_balance > 0.0 &&
-          !(!polyline_.empty() &&
-            (NearExtremity(point, polyline_.front()) || NearExtremity(point, polyline_.back()))) &&
+      const bool grows = !polyline_.empty() && (NearExtremity(point, polyline_.front()) ||
+                                                NearExtremity(point, polyline_.back()));
+      if (options_.cluster_outliers && options_.min_opening_balance > 0.0 && !grows &&
           OpeningBalance(*result) < options_.min_opening_balance) {
         ++result->one_sided_clusters;
         DropClusterFromCandidates();
@@ -315,16 +315,13 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
           ++result->pairs_removed_by_cut;
         }
       }
-      std::sort(cluster_.begin(), cluster_.end());
+      DropClusterFromCandidates();
     }
     // Outliers whose pair has just been removed no longer count.
     candidates_.erase(
         std::remove_if(candidates_.begin(), candidates_.end(),
                        [&](int k) {
                          const FeaturePair& p = result->pairs[k];
-                         if (options_.cluster_outliers &&
-                             std::binary_search(cluster_.begin(), cluster_.end(), k))
-                           return true;
                          return SquaredDistanceToSegment(model_mm_.row(p.first).transpose(),
                                                          model_mm_.row(p.second).transpose(),
                                                          point.position_mm) <

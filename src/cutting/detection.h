@@ -178,8 +178,8 @@ struct DetectionResult {
   std::vector<int> outliers;       // indices into pairs/measure with mu > tau * mean
   std::vector<CutPoint> new_cut_points;
   int pairs_removed_by_cut = 0;  // pairs crossing the r_pc sphere of the new cut points
-  int lone_features =
-      0;  // clusters rejected this frame as one feature's star (reject_lone_features)
+  // Clusters rejected this frame as one feature's star (reject_lone_features).
+  int lone_features = 0;
   int one_sided_clusters = 0;      // clusters rejected this frame by min_opening_balance
   int refused_points = 0;          // cut points refused this frame as no growth of the polyline
   int pairs_removed_by_death = 0;  // pairs with a feature that died this frame

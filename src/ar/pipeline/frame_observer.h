@@ -32,8 +32,8 @@ struct StageTimes {
 // One feature attached at frame 0 (row r of every per-feature matrix below).
 struct FeatureView {
   int id = 0;  // tracker id (TrackStore)
-  Eigen::Vector2d pixel =
-      Eigen::Vector2d::Zero();  // where the tracker has it now (last position when lost)
+  // Where the tracker has it now (last position when lost).
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();
   TrackStatus track_status = TrackStatus::kTracked;  // this frame (final once not kTracked)
   lift::LiftStatus lift_status = lift::LiftStatus::kNotAttached;
   bool alive = false;             // tracked and attached: its spring acts

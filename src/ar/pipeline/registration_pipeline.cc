@@ -250,7 +250,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   for (const lift::FeatureAttachment& a : attachments) attached += a.attached ? 1 : 0;
   const SpringStiffness stiffness = ResolveSpringStiffness(
       o.mechanics, scene.material.youngs_modulus_pa, TetVolumes(impl_->model.mesh).sum(),
-      AreaFacing(surface, camera.camera_from_world.inverse().translation()), attached);
+      AreaFacing(surface, camera.CenterInWorld()), attached);
   for (int r = 0; r < nf; ++r) {
     FeatureView& v = features[r];
     v.lift_status = lifter.status()[r];
