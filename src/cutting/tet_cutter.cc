@@ -555,6 +555,14 @@ void CutEvent::Remesh() {
     target /= static_cast<double>(points.size());
     const std::vector<int> parents(q.begin(), q.end());
     p_of[i] = AddVertex(parents, InteriorWeights(parents, target), on_surface);
+    // The tangent-plane point of a partial cut can still lie on S (an S that ends inside the
+    // element, e.g. the strip of a growing cut): it is then on S like a crossing, and the
+    // faces it makes with the crossings are unsewn.
+    if (!on_surface &&
+        DistanceToSurface(m_.current_[p_of[i]], nullptr) <= opt_.on_surface_tolerance * scale_) {
+      on_surface = true;
+      marked_[p_of[i]] = 1;
+    }
     split_vertices_.emplace_back(p_of[i], on_surface);
   }
 

@@ -210,6 +210,44 @@ TEST(TetCutter, ProgressivePartialCutsSeparateAtTheEnd) {
   }
 }
 
+// S ends inside the element, crossing two of its edges: the 1-4 vertex goes to the centroid of
+// the element's section by S's tangent plane, which here lies inside S. It is then on S like a
+// crossing, and the face it makes with the two crossings is on S and unsewn (taken as off S,
+// the strip of a growing cut stayed sewn in every element where it ended).
+TEST(TetCutter, SplitVertexInsideAPartialSIsOnIt) {
+  TetMesh tet;
+  tet.vertices.resize(4, 3);
+  tet.vertices << 0, 0, 0, 10, 0, 0, 0, 10, 0, 0, 0, 10;
+  tet.tetrahedra.resize(1, 4);
+  tet.tetrahedra << 0, 1, 2, 3;
+  // The plane x = 2 cuts edges 0-1, 1-2 and 1-3 at (2, 0, 0), (2, 8, 0) and (2, 0, 8); S is
+  // its part with z <= 3, so it crosses the first two. The section's centroid (2, 8/3, 8/3)
+  // is inside S.
+  const CutSurface s = MakeGridSurface(
+      [](double a, double b) { return Eigen::Vector3d(2, -5 + 20 * a, -5 + 8 * b); }, 2, 2);
+  for (RemeshMethod method : {RemeshMethod::kFlips, RemeshMethod::kBielser}) {
+    CuttableMesh m(tet);
+    CutOptions opt;
+    opt.method = method;
+    opt.snap_epsilon = 0;
+    CutChange change;
+    const CutSummary sum = m.Cut(s, opt, &change);
+    ASSERT_EQ(sum.status, CutStatus::kCut) << sum.message;
+    const MeshInvariants inv = CheckMeshInvariants(m.RestMesh());
+    ASSERT_TRUE(inv.ok()) << inv.ToString();
+    EXPECT_NEAR(inv.total_volume, 1000.0 / 6.0, 1e-9);
+    // Every unsewn face lies in S, and the section's part inside S has at least one.
+    EXPECT_GE(change.separated_faces.size(), 1u) << "method " << static_cast<int>(method);
+    for (const auto& f : change.separated_faces)
+      for (int v : f) {
+        const Eigen::Vector3d x = m.rest_positions()[v];
+        EXPECT_NEAR(x.x(), 2.0, 1e-9);
+        EXPECT_LE(x.z(), 3.0 + 1e-9);
+      }
+    EXPECT_EQ(NumPieces(m.RestMesh()), 1);  // a partial cut leaves one piece
+  }
+}
+
 // Two crossing planes give four pieces, whichever is cut first.
 TEST(TetCutter, CrossingCutsGiveFourPieces) {
   for (RemeshMethod method : {RemeshMethod::kFlips, RemeshMethod::kBielser}) {
