@@ -22,6 +22,11 @@ double SquaredDistanceToSegment(const Eigen::Vector3d& a, const Eigen::Vector3d&
   return (a + s * ab - c).squaredNorm();
 }
 
+// C^t is kept sorted by (first, second).
+bool PairLess(const FeaturePair& a, const FeaturePair& b) {
+  return a.first != b.first ? a.first < b.first : a.second < b.second;
+}
+
 // Median over (at most kMaxSamples evenly strided) features of the distance to their k-th
 // nearest other feature; 0 when fewer than two features. O(#samples * #F) once per Initialize.
 double MedianKthNeighbourDistance(const RowMatX3d& points_mm, int k) {
@@ -72,6 +77,12 @@ void CutDetectorOptions::Check() const {
                         min_opening_balance <= 1.0,
                     "", "cut_detector.min_opening_balance", "must be in [0, 1], got ",
                     min_opening_balance);
+  ARREG_CHECK_INPUT(std::isfinite(bridge_radius_factor) && bridge_radius_factor >= 0.0, "",
+                    "cut_detector.bridge_radius_factor", "must be >= 0 (0: no bridges), got ",
+                    bridge_radius_factor);
+  ARREG_CHECK_INPUT(bridge_cone_half_angle_deg > 0.0 && bridge_cone_half_angle_deg < 90.0, "",
+                    "cut_detector.bridge_cone_half_angle_deg", "must be in (0, 90), got ",
+                    bridge_cone_half_angle_deg);
   ARREG_CHECK_INPUT(max_cut_points_per_frame >= 1, "", "cut_detector.max_cut_points_per_frame",
                     "must be >= 1, got ", max_cut_points_per_frame);
 }
@@ -112,43 +123,105 @@ void CutDetector::Initialize(const RowMatX3d& initial_positions_mm, const std::v
   frame_ = 0;
   row_of_feature_.assign(n, -1);
   cluster_count_.assign(n, 0);
+  bridge_candidates_.assign(n, {});
+  bridge_candidates_known_.assign(n, 0);
   model_mm_.setZero(n, 3);
   target_mm_.setZero(n, 3);
 
   // Uniform grid with cell size r_F: neighbours lie in the 27 surrounding cells.
   pairs_.clear();
+  grid_.clear();
+  cell_of_.clear();
+  ever_paired_.clear();
   if (n == 0) return;
-  const double cell = options_.neighbour_radius_mm;
-  const double r2 = cell * cell;
-  const Eigen::RowVector3d lo = initial_mm_.colwise().minCoeff();
-  Eigen::Matrix<long long, Eigen::Dynamic, 3, Eigen::RowMajor> key(n, 3);
-  for (int i = 0; i < n; ++i)
-    for (int k = 0; k < 3; ++k)
-      key(i, k) = static_cast<long long>(std::floor((initial_mm_(i, k) - lo(k)) / cell));
-  auto hash = [](long long x, long long y, long long z) {
-    return (x * 73856093LL) ^ (y * 19349663LL) ^ (z * 83492791LL);
-  };
-  std::unordered_multimap<long long, int> grid;
-  grid.reserve(2 * n);
-  for (int i = 0; i < n; ++i) grid.emplace(hash(key(i, 0), key(i, 1), key(i, 2)), i);
+  const double r2 = options_.neighbour_radius_mm * options_.neighbour_radius_mm;
+  grid_origin_mm_ = initial_mm_.colwise().minCoeff();
+  std::vector<Eigen::Matrix<long long, 3, 1>>& key = cell_of_;
+  key.resize(n);
+  grid_.reserve(2 * n);
+  for (int i = 0; i < n; ++i) {
+    key[i] = CellKey(initial_mm_.row(i).transpose());
+    grid_.emplace(CellHash(key[i](0), key[i](1), key[i](2)), i);
+  }
   for (int i = 0; i < n; ++i) {
     for (long long dx = -1; dx <= 1; ++dx)
       for (long long dy = -1; dy <= 1; ++dy)
         for (long long dz = -1; dz <= 1; ++dz) {
-          const long long cx = key(i, 0) + dx, cy = key(i, 1) + dy, cz = key(i, 2) + dz;
-          auto range = grid.equal_range(hash(cx, cy, cz));
+          const Eigen::Matrix<long long, 3, 1> c =
+              key[i] + Eigen::Matrix<long long, 3, 1>(dx, dy, dz);
+          auto range = grid_.equal_range(CellHash(c(0), c(1), c(2)));
           for (auto it = range.first; it != range.second; ++it) {
             const int j = it->second;
             // The hash may collide: compare the real cell keys.
-            if (j <= i || key(j, 0) != cx || key(j, 1) != cy || key(j, 2) != cz) continue;
+            if (j <= i || key[j] != c) continue;
             if ((initial_mm_.row(i) - initial_mm_.row(j)).squaredNorm() < r2)
               pairs_.push_back({i, j});
           }
         }
   }
-  std::sort(pairs_.begin(), pairs_.end(), [](const FeaturePair& a, const FeaturePair& b) {
-    return a.first != b.first ? a.first < b.first : a.second < b.second;
-  });
+  ever_paired_.reserve(2 * pairs_.size());
+  for (const FeaturePair& p : pairs_)
+    ever_paired_.insert(static_cast<long long>(p.first) * n + p.second);
+  std::sort(pairs_.begin(), pairs_.end(), PairLess);
+}
+
+Eigen::Matrix<long long, 3, 1> CutDetector::CellKey(const Eigen::Vector3d& p0) const {
+  const double cell = options_.neighbour_radius_mm;
+  Eigen::Matrix<long long, 3, 1> key;
+  for (int k = 0; k < 3; ++k)
+    key(k) = static_cast<long long>(std::floor((p0(k) - grid_origin_mm_(k)) / cell));
+  return key;
+}
+
+const std::vector<int>& CutDetector::BridgeCandidates(int l) {
+  std::vector<int>& list = bridge_candidates_[l];
+  if (bridge_candidates_known_[l]) return list;
+  bridge_candidates_known_[l] = 1;
+  const double radius = options_.bridge_radius_factor * options_.neighbour_radius_mm;
+  const Eigen::RowVector3d pl = initial_mm_.row(l);
+  const long long reach = static_cast<long long>(std::ceil(options_.bridge_radius_factor));
+  const Eigen::Matrix<long long, 3, 1> key = CellKey(pl.transpose());
+  std::vector<std::pair<double, int>> found;
+  for (long long dx = -reach; dx <= reach; ++dx)
+    for (long long dy = -reach; dy <= reach; ++dy)
+      for (long long dz = -reach; dz <= reach; ++dz) {
+        const Eigen::Matrix<long long, 3, 1> c = key + Eigen::Matrix<long long, 3, 1>(dx, dy, dz);
+        auto range = grid_.equal_range(CellHash(c(0), c(1), c(2)));
+        for (auto it = range.first; it != range.second; ++it) {
+          const int m = it->second;
+          // The hash may collide: only the features of this very cell.
+          if (m == l || cell_of_[m] != c) continue;
+          const double d2 = (initial_mm_.row(m) - pl).squaredNorm();
+          if (d2 > 0.0 && d2 < radius * radius) found.emplace_back(d2, m);
+        }
+      }
+  // Nearest first, ties to the lower index: the result does not depend on the grid's order.
+  std::sort(found.begin(), found.end());
+  list.reserve(found.size());
+  for (const auto& [d2, m] : found) list.push_back(m);
+  return list;
+}
+
+int CutDetector::BridgeFeature(int l, int dead) {
+  const int n = num_features();
+  const Eigen::Vector3d pl = initial_mm_.row(l).transpose();
+  const Eigen::Vector3d towards = initial_mm_.row(dead).transpose() - pl;
+  if (options_.bridge_radius_factor <= 0.0 || towards.norm() == 0.0) return -1;
+  const double cos_cone = std::cos(options_.bridge_cone_half_angle_deg * kPi / 180.0);
+  const double r_pc2 = options_.cut_point_radius_mm * options_.cut_point_radius_mm;
+  for (int m : BridgeCandidates(l)) {
+    if (!alive_[m]) continue;
+    const Eigen::Vector3d v = initial_mm_.row(m).transpose() - pl;
+    if (v.dot(towards) < cos_cone * v.norm() * towards.norm()) continue;
+    const long long pair_key = static_cast<long long>(std::min(l, m)) * n + std::max(l, m);
+    if (ever_paired_.count(pair_key)) continue;
+    bool crosses_cut = false;
+    for (const CutPoint& q : polyline_)
+      crosses_cut = crosses_cut || SquaredDistanceToSegment(pl, initial_mm_.row(m).transpose(),
+                                                            q.initial_position_mm) < r_pc2;
+    if (!crosses_cut) return m;
+  }
+  return -1;
 }
 
 void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
@@ -191,13 +264,33 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   result->pairs_removed_by_death = 0;
   result->segment_added = false;
   result->look_ahead_mm.reset();
+  result->pairs_bridged = 0;
   if (any_died) {
+    // (alive feature, dead neighbour) of the pairs that die, for their bridges.
+    std::vector<std::pair<int, int>> lost;
+    if (options_.bridge_radius_factor > 0.0)
+      for (const FeaturePair& p : pairs_)
+        if (alive_[p.first] != alive_[p.second])
+          lost.emplace_back(alive_[p.first] ? p.first : p.second,
+                            alive_[p.first] ? p.second : p.first);
     const size_t before = pairs_.size();
     pairs_.erase(
         std::remove_if(pairs_.begin(), pairs_.end(),
                        [&](const FeaturePair& p) { return !alive_[p.first] || !alive_[p.second]; }),
         pairs_.end());
     result->pairs_removed_by_death = static_cast<int>(before - pairs_.size());
+    const size_t kept = pairs_.size();
+    for (const auto& [l, dead] : lost) {
+      const int m = BridgeFeature(l, dead);
+      if (m < 0) continue;
+      const FeaturePair bridge{std::min(l, m), std::max(l, m), true};
+      ever_paired_.insert(static_cast<long long>(bridge.first) * n + bridge.second);
+      pairs_.push_back(bridge);
+      ++result->pairs_bridged;
+    }
+    // Sorted kept pairs, then the few bridges: sort these and merge (linear in #pairs).
+    std::sort(pairs_.begin() + kept, pairs_.end(), PairLess);
+    std::inplace_merge(pairs_.begin(), pairs_.begin() + kept, pairs_.end(), PairLess);
   }
 
   // mu_lm = |d_l - d_m| * delta_lm / delta^0_lm with d = p^t - p^1 (eq. 7.9-7.11).
@@ -206,7 +299,10 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   result->measure.resize(num_pairs);
   const RowMatX3d& ratio_positions =
       options_.measure == CutMeasure::kModelRegularised ? model_mm_ : target_mm_;
-  double sum = 0.0;
+  // mu-bar is taken over the pairs of C_F (bridges are up to 2 r_F long and would shift the
+  // threshold the thesis's tau refers to); over the bridges if no pair of C_F is left.
+  double sum = 0.0, bridge_sum = 0.0;
+  int bridges = 0;
   for (int k = 0; k < num_pairs; ++k) {
     const int l = pairs_[k].first, m = pairs_[k].second;
     const Eigen::Vector3d dl = model_mm_.row(l) - target_mm_.row(l);
@@ -218,9 +314,15 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
     const double mu2 = delta0 > 0.0 ? delta / delta0 : 1.0;
     const double mu = mu1 * mu2;
     result->measure[k] = mu;
-    sum += mu;
+    if (pairs_[k].bridge) {
+      bridge_sum += mu;
+      ++bridges;
+    } else {
+      sum += mu;
+    }
   }
-  const double mean = num_pairs > 0 ? sum / num_pairs : 0.0;
+  const int measured = num_pairs > bridges ? num_pairs - bridges : num_pairs;
+  const double mean = measured > 0 ? (num_pairs > bridges ? sum : bridge_sum) / measured : 0.0;
   result->mean_measure = mean;
   threshold_ = std::max(options_.outlier_factor * mean, options_.min_outlier_measure_mm);
   for (int k = 0; k < num_pairs; ++k) {
@@ -304,12 +406,9 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
     // The outliers that made the point are explained by it: without their removal, a cluster
     // whose pairs pass outside the r_pc sphere would insert the same point again next frame.
     if (options_.cluster_outliers) {
-      const auto less = [](const FeaturePair& a, const FeaturePair& b) {
-        return a.first != b.first ? a.first < b.first : a.second < b.second;
-      };
       for (int k : cluster_) {
         const FeaturePair& p = result->pairs[k];
-        const auto it = std::lower_bound(pairs_.begin(), pairs_.end(), p, less);
+        const auto it = std::lower_bound(pairs_.begin(), pairs_.end(), p, PairLess);
         if (it != pairs_.end() && it->first == p.first && it->second == p.second) {
           pairs_.erase(it);
           ++result->pairs_removed_by_cut;

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <optional>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "core/mesh.h"
@@ -144,6 +145,22 @@ struct CutDetectorOptions {
   double boundary_cone_half_angle_deg = 45.0;
   // Cut points inserted per Update at most (the thesis inserts one per time step). Default 1.
   int max_cut_points_per_frame = 1;
+  // [-] Bridging of dead neighbours, as a factor on r_F; 0 disables. When a feature d dies, each
+  // alive l of its current pairs gets one new pair (l, m): m is the nearest alive feature with
+  // |p0_m - p0_l| < bridge_radius_factor * r_F whose direction p0_m - p0_l lies within
+  // bridge_cone_half_angle_deg of p0_d - p0_l, that was never paired with l, and whose frame-0
+  // segment to l passes no cut point's frame-0 position within r_pc (those pairs were pruned or
+  // are explained). Not in the thesis, whose C_F is fixed at frame 0: on a cut that opens wide
+  // the tracker loses the lip features within a few frames of the tip passing (the texture
+  // there turns and opens), so once every feature within r_F / 2 of the seam is gone no pair of
+  // C_F spans the cut and the thesis's measure cannot see it grow (synthetic v-band: no pair
+  // across the tear below its first 10 mm). A bridge takes the lost neighbour's place in the
+  // same direction, so a pair that spanned the gap still does. Pairs never grow in number:
+  // each dead pair gives at most one bridge. Default 2.
+  double bridge_radius_factor = 2.0;
+  // [deg] half-angle of the cone around a dead neighbour's direction searched for its bridge.
+  // Default 30.
+  double bridge_cone_half_angle_deg = 30.0;
 
   // Throws arreg::Error naming the offending field.
   void Check() const;
@@ -153,6 +170,7 @@ struct CutDetectorOptions {
 struct FeaturePair {
   int first = 0;
   int second = 0;
+  bool bridge = false;  // added in place of a dead pair (bridge_radius_factor), not in C_F
 };
 
 // One frame of tracked features. Rows correspond to `ids`; a feature given to Initialize and
@@ -183,7 +201,8 @@ struct DetectionResult {
   int one_sided_clusters = 0;      // clusters rejected this frame by min_opening_balance
   int refused_points = 0;          // cut points refused this frame as no growth of the polyline
   int pairs_removed_by_death = 0;  // pairs with a feature that died this frame
-  bool segment_added = false;      // the polyline has >= 2 points and grew this frame
+  int pairs_bridged = 0;  // pairs added this frame in place of dead ones (bridge_radius_factor)
+  bool segment_added = false;                // the polyline has >= 2 points and grew this frame
   std::vector<Eigen::Vector3d> polyline_mm;  // cut points in order (p^t at insertion)
   std::optional<Eigen::Vector3d>
       look_ahead_mm;  // r_pc beyond the extremity grown this frame (if look_ahead)
@@ -192,7 +211,7 @@ struct DetectionResult {
 
 // Stateful detector: C_F is built once, then every Update evaluates mu on the remaining pairs,
 // inserts cut points and prunes pairs. Single-threaded; Update allocates nothing once the result
-// vectors have reached their size.
+// vectors have reached their size, except in frames where features die (bridges).
 class CutDetector {
  public:
   explicit CutDetector(const CutDetectorOptions& options = {});
@@ -230,6 +249,15 @@ class CutDetector {
   // Opening balance of cluster_ (see CutDetectorOptions::min_opening_balance).
   double OpeningBalance(const DetectionResult& result) const;
   bool ExtremityAtBorder(bool front) const;
+  // The bridge of the pair (l, dead) (see CutDetectorOptions::bridge_radius_factor), -1 if none.
+  int BridgeFeature(int l, int dead);
+  // Features within the bridge radius of l (frame 0), nearest first; computed at first use.
+  const std::vector<int>& BridgeCandidates(int l);
+  // Grid cell key of a frame-0 position (cell size r_F) and its hash.
+  Eigen::Matrix<long long, 3, 1> CellKey(const Eigen::Vector3d& p0) const;
+  static long long CellHash(long long x, long long y, long long z) {
+    return (x * 73856093LL) ^ (y * 19349663LL) ^ (z * 83492791LL);
+  }
   // Fills cluster_ from candidates_ (see CutDetectorOptions::cluster_outliers).
   void SelectCluster(const DetectionResult& result);
   // When one feature is in more than 3/4 of cluster_'s pairs and their other features are
@@ -247,6 +275,12 @@ class CutDetector {
   std::unordered_map<int, int> index_of_id_;
   std::vector<char> alive_;
   std::vector<FeaturePair> pairs_;
+  Eigen::RowVector3d grid_origin_mm_ = Eigen::RowVector3d::Zero();
+  std::unordered_multimap<long long, int> grid_;         // frame-0 positions by cell (size r_F)
+  std::vector<Eigen::Matrix<long long, 3, 1>> cell_of_;  // per feature, its cell key
+  std::unordered_set<long long> ever_paired_;            // l * #F + m of every pair C^t has held
+  std::vector<std::vector<int>> bridge_candidates_;      // per feature, see BridgeCandidates
+  std::vector<char> bridge_candidates_known_;
   std::vector<CutPoint> polyline_;  // front() and back() are the extremities
   bool front_at_border_ = false;
   bool back_at_border_ = false;

@@ -70,13 +70,61 @@ struct Model {
 // (the detector's polyline with a 7 mm look-ahead), while the block moves and bends a little
 // between events: every event applies on the persistent topology, the state stays numbered
 // like it, the rest volume is kept, the growth stays that of one cut (the crack is not cut
-// again), and at the end the block is in two pieces, the sheet inside cut along the line.
+// again), and at the end the block is in two pieces, the sheet inside cut along the line (a
+// transection: keep_connected off).
+// One event across the whole 40 x 40 x 20 mm block seen from above. The S that spans the
+// block's depth along the rays cuts it in two; with keep_connected (the default) S is cut
+// again shallower and the block stays in one piece, open from the top, the rest volume kept.
+TEST(CutHandler, KeepConnectedCutsShallowerInsteadOfSplitting) {
+  const TetMesh block =
+      MakeBoxTetMesh(Eigen::Vector3d(40, 40, 20), Eigen::Vector3i(8, 8, 4), BoxTetSplit::kSix);
+  const double v0 = cutting::CheckMeshInvariants(block).total_volume;
+  const Eigen::Vector3d eye(20, 20, 200);
+  const std::vector<Eigen::Vector3d> polyline = {Eigen::Vector3d(-5, 20.3, 20),
+                                                 Eigen::Vector3d(45, 20.3, 20)};
+  for (bool keep : {true, false}) {
+    SCOPED_TRACE(keep ? "keep_connected" : "transection");
+    Model model(block);
+    CuttingStageOptions options;
+    EXPECT_TRUE(options.keep_connected);
+    options.keep_connected = keep;
+    CutHandler handler(options, model.state);
+    const CutEvent ev = handler.Apply(0, polyline, eye, model.Targets());
+    ASSERT_EQ(ev.status, "cut") << ev.message;
+    const TetMesh rest = model.state.RestMesh();
+    const cutting::MeshInvariants inv = cutting::CheckMeshInvariants(rest);
+    ASSERT_TRUE(inv.ok()) << inv.ToString();
+    EXPECT_NEAR(inv.total_volume, v0, 1e-9 * v0);
+    int pieces = 0;
+    ConnectedComponents(rest, Adjacency::kVertex, &pieces);
+    EXPECT_EQ(pieces, keep ? 1 : 2);
+    if (keep) {
+      EXPECT_GT(ev.depth_fraction, 0.0);
+      EXPECT_LT(ev.depth_fraction, 1.0);
+    } else {
+      EXPECT_EQ(ev.depth_fraction, 1.0);
+    }
+    // The top is open along the whole line: its 9 vertices on y = 20 (within the on-surface
+    // tolerance of S) are duplicated, one copy on each lip; the bottom's only when split.
+    auto on_line = [&](double z) {
+      int count = 0;
+      for (int v = 0; v < rest.num_vertices(); ++v)
+        count +=
+            std::abs(rest.vertices(v, 2) - z) < 1e-9 && std::abs(rest.vertices(v, 1) - 20.3) < 0.5;
+      return count;
+    };
+    EXPECT_EQ(on_line(20), 18);
+    EXPECT_EQ(on_line(0), keep ? 9 : 18);
+  }
+}
+
 TEST(CutHandler, ProgressiveCutOnAMovingModel) {
   const TetMesh block =
       MakeBoxTetMesh(Eigen::Vector3d(40, 40, 20), Eigen::Vector3i(8, 8, 4), BoxTetSplit::kSix);
   Model model(block);
   const double v0 = cutting::CheckMeshInvariants(block).total_volume;
   CuttingStageOptions options;
+  options.keep_connected = false;
   CutHandler handler(options, model.state);
   const Eigen::Vector3d eye(20, 20, 200);
   std::vector<Eigen::Vector3d> cut_points;

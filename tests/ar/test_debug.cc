@@ -128,11 +128,13 @@ TEST(DebugRecorder, PairsNameNeighboursByIdAndFlagOutliersAboveTauMean) {
   std::map<int, Eigen::Vector3d> initial_of_id;
   for (size_t row = 0; row < p0.size(); ++row)
     initial_of_id[fixture::IdOfRow(static_cast<int>(row))] = p0[row];
-  int frames_with_outliers = 0, cut_points = 0;
+  int frames_with_outliers = 0, cut_points = 0, bridged = 0;
   for (int t = 0; t < fixture::kFrames; ++t) {
     const nlohmann::json rec = ReadJson(FrameRecordPath(r.run, t));
     const auto& det = rec["detection"];
     const cutting::DetectionResult& d = r.detections[t];
+    ASSERT_EQ(det["pairs_bridged"].get<int>(), d.pairs_bridged);
+    bridged += d.pairs_bridged;
     ASSERT_EQ(det["pairs"].size(), d.pairs.size());
     EXPECT_NEAR(det["mean_mu"].get<double>(), d.mean_measure, 1e-12);
     const double threshold = det["threshold"].get<double>();
@@ -142,7 +144,10 @@ TEST(DebugRecorder, PairsNameNeighboursByIdAndFlagOutliersAboveTauMean) {
       const int a = p[0].get<int>(), b = p[1].get<int>();
       ASSERT_TRUE(initial_of_id.count(a) && initial_of_id.count(b));
       EXPECT_NE(a, fixture::IdOfRow(fixture::kUnattachedRow));
-      EXPECT_LT((initial_of_id[a] - initial_of_id[b]).norm(), 15.0) << a << " " << b;
+      // C_F's pairs lie within r_F = 15 mm, the bridges of dead pairs within 2 r_F.
+      const double d = (initial_of_id[a] - initial_of_id[b]).norm();
+      EXPECT_LT(d, 2 * 15.0) << a << " " << b;
+      if (d >= 15.0) EXPECT_GT(bridged, 0) << "frame " << t << ": " << a << " " << b;
       const bool outlier = p[3].get<int>() != 0;
       EXPECT_EQ(outlier, p[2].get<double>() > threshold) << "frame " << t;
       outliers += outlier;

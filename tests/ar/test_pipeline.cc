@@ -255,6 +255,20 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_DOUBLE_EQ(o.render.organ_opacity, 0.5);
   EXPECT_TRUE(o.render.wireframe);
   EXPECT_EQ(o.tracking.max_features, 500);
+  // The cutting section's keys of session 6 are read and checked.
+  EXPECT_TRUE(o.cutting.keep_connected);
+  EXPECT_DOUBLE_EQ(o.cutting.detector.bridge_radius_factor, 2.0);
+  scene.cutting = {{"keep_connected", false},
+                   {"bridge_radius_factor", 0.0},
+                   {"bridge_cone_half_angle_deg", 20.0}};
+  const PipelineOptions c = ReadPipelineOptions(scene);
+  EXPECT_FALSE(c.cutting.keep_connected);
+  EXPECT_DOUBLE_EQ(c.cutting.detector.bridge_radius_factor, 0.0);
+  EXPECT_DOUBLE_EQ(c.cutting.detector.bridge_cone_half_angle_deg, 20.0);
+  scene.cutting = {{"bridge_cone_half_angle_deg", 95.0}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  scene.cutting = {{"keep_connected", 1.5}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
 }
 
 TEST(Overlay, DrawsOnlyOverTheOrganAndBlendsByOpacity) {

@@ -78,6 +78,9 @@ struct SeamScenario {
   // tracks always carry some; it is what sets mean(mu) away from the cut.
   double noise_mm = 0.25;
   unsigned seed = 3;
+  // Features closer than this to the seam die once the gap at their place is 1 mm wide (the
+  // tracker loses the lips of a tear; 0: none die).
+  double lip_loss_mm = 0.0;
 
   // Width [mm] of the gap at arc length `along` when the tip is at `tip`. Behind the start
   // (beyond the border, where the grid's far corners lie) the halves move as at the start.
@@ -101,6 +104,8 @@ struct SeamRun {
   std::vector<Eigen::Vector3d> extended_initial;
   int frames = 0;
   int look_aheads = 0;  // frames whose result had a look-ahead point (checked in RunSeam)
+  int bridged = 0;      // pairs bridged over the frames
+  int died = 0;         // features lost (lip_loss_mm)
 };
 
 SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOptions& options) {
@@ -113,6 +118,7 @@ SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOp
   DetectionResult result;
   const int n = static_cast<int>(g.p0.rows());
   const Eigen::Vector2d normal = s.Normal();
+  std::vector<char> alive(n, 1);
   for (double tip = s.tip_start_mm; tip <= s.tip_end_mm + 1e-9; tip += s.speed_mm) {
     double cut_extent = -std::numeric_limits<double>::infinity();
     for (const Eigen::Vector3d& p : detector.ExtendedPolyline(true))
@@ -131,7 +137,25 @@ SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOp
         target(r, 1) += s.noise_mm * noise(rng);
       }
     }
-    detector.Update(MakeFrame(g, target, model), &result);
+    FrameFeatures frame;
+    std::vector<int> rows;
+    for (int r = 0; r < n; ++r) {
+      const Eigen::Vector2d c = s.Coordinates(g.p0.row(r).transpose());
+      if (alive[r] && std::abs(c.y()) < s.lip_loss_mm && s.Opening(c.x(), tip) >= 1.0) {
+        alive[r] = 0;
+        ++run.died;
+      }
+      if (alive[r]) rows.push_back(r);
+    }
+    frame.target_mm.resize(rows.size(), 3);
+    frame.model_mm.resize(rows.size(), 3);
+    for (size_t k = 0; k < rows.size(); ++k) {
+      frame.ids.push_back(g.ids[rows[k]]);
+      frame.target_mm.row(k) = target.row(rows[k]);
+      frame.model_mm.row(k) = model.row(rows[k]);
+    }
+    detector.Update(frame, &result);
+    run.bridged += result.pairs_bridged;
     if (result.look_ahead_mm) {
       // The look-ahead point lies on the r_pc sphere around the grown extremity, on the line
       // through the extremity's last segment.
@@ -174,6 +198,12 @@ TEST(CutDetectorOptions, CheckNamesTheField) {
   o = {};
   o.min_opening_balance = 1.5;
   expect_named(o, "min_opening_balance");
+  o = {};
+  o.bridge_radius_factor = -1.0;
+  expect_named(o, "bridge_radius_factor");
+  o = {};
+  o.bridge_cone_half_angle_deg = 90.0;
+  expect_named(o, "bridge_cone_half_angle_deg");
 }
 
 TEST(CutDetector, NeighbourGraphEqualsBruteForce) {
@@ -288,7 +318,9 @@ TEST(CutDetector, GridHasThesisSize) {
 
 TEST(CutDetector, DeadFeaturesLoseTheirPairs) {
   const FeatureGrid g = MakeGrid(6, 6);
-  CutDetector detector;
+  CutDetectorOptions thesis;  // C_F fixed at frame 0
+  thesis.bridge_radius_factor = 0.0;
+  CutDetector detector(thesis);
   detector.Initialize(g.p0, g.ids);
   const size_t before = detector.pairs().size();
   // Feature 0 (a corner) and feature 14 die.
@@ -322,6 +354,58 @@ TEST(CutDetector, DeadFeaturesLoseTheirPairs) {
   EXPECT_THROW(detector.Update(back, &result), Error);
   f.ids[0] = -5;
   EXPECT_THROW(detector.Update(f, &result), Error);
+}
+
+// Features 0-3 on a line 4.8 mm apart and feature 4 above feature 2; r_F = 8 mm, so C_F holds
+// the neighbours on the line and (2, 4). A dead neighbour is replaced by the nearest alive
+// feature within 2 r_F in its direction (30 degree cone), once per pair.
+TEST(CutDetector, DeadNeighboursAreBridgedInTheirDirection) {
+  CutDetectorOptions o;
+  o.neighbours_per_feature = 0;
+  o.neighbour_radius_mm = 8.0;
+  RowMatX3d p0(5, 3);
+  p0 << 0, 0, 0, 4.8, 0, 0, 9.6, 0, 0, 14.4, 0, 0, 9.6, 7, 0;
+  const std::vector<int> ids = {10, 11, 12, 13, 14};
+  CutDetector detector(o);
+  detector.Initialize(p0, ids);
+  auto has = [&](int a, int b) {
+    for (const FeaturePair& q : detector.pairs())
+      if (q.first == a && q.second == b) return true;
+    return false;
+  };
+  ASSERT_EQ(detector.pairs().size(), 4u);
+  ASSERT_TRUE(has(0, 1) && has(1, 2) && has(2, 3) && has(2, 4));
+  auto frame_without = [&](const std::set<int>& dead) {
+    FrameFeatures f;
+    std::vector<int> rows;
+    for (int r = 0; r < 5; ++r)
+      if (!dead.count(r)) rows.push_back(r);
+    f.target_mm.resize(rows.size(), 3);
+    f.model_mm.resize(rows.size(), 3);
+    for (size_t k = 0; k < rows.size(); ++k) {
+      f.ids.push_back(ids[rows[k]]);
+      f.target_mm.row(k) = p0.row(rows[k]);
+      f.model_mm.row(k) = p0.row(rows[k]);
+    }
+    return f;
+  };
+  DetectionResult r;
+  // 1 dies: 0 and 2 bridge it (one pair for both); 4 is 12.5 mm from 0 but 36 degrees off.
+  detector.Update(frame_without({1}), &r);
+  EXPECT_EQ(r.pairs_removed_by_death, 2);
+  EXPECT_EQ(r.pairs_bridged, 1);
+  EXPECT_EQ(detector.pairs().size(), 3u);
+  EXPECT_TRUE(has(0, 2) && has(2, 3) && has(2, 4));
+  // 2 dies: (0, 2) is bridged to 3 (14.4 mm < 2 r_F); 4's direction to 2 holds no feature.
+  detector.Update(frame_without({1, 2}), &r);
+  EXPECT_EQ(r.pairs_removed_by_death, 3);
+  EXPECT_EQ(r.pairs_bridged, 1);
+  ASSERT_EQ(detector.pairs().size(), 1u);
+  EXPECT_TRUE(has(0, 3));
+  // 3 dies: nothing lies within 2 r_F beyond it.
+  detector.Update(frame_without({1, 2, 3}), &r);
+  EXPECT_EQ(r.pairs_bridged, 0);
+  EXPECT_TRUE(detector.pairs().empty());
 }
 
 TEST(CutDetector, MeasureMatchesDefinition) {
@@ -383,6 +467,48 @@ TEST(CutDetector, SeamPulledApartGivesCutPointsAlongTheSeam) {
       // ...and, starting at the border, is extended across it (boundary handling).
       EXPECT_LT(run.extended_initial.front().x(), 0.0);
     }
+}
+
+// A tear whose lips the tracker loses (as on the synthetic v-band, docs/detection.md): every
+// feature within 10 mm of the seam dies once the gap at its place is 1 mm wide, before the
+// opening stands out of the noise, so no pair of C_F (r_F = 3 spacings = 14.4 mm) spans the
+// seam behind the tip. The bridges of the dead pairs (up to 2 r_F) do, and the polyline
+// follows the seam as with the lips tracked; without bridges the detector finds no cut.
+TEST(CutDetector, LostLipFeaturesAreBridged) {
+  const FeatureGrid g = MakeGrid();
+  for (unsigned seed : {1u, 2u, 3u, 4u, 5u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    SeamScenario scenario;
+    scenario.seed = seed;
+    scenario.lip_loss_mm = 10.0;
+    // The uncut model spans the band of lost features, pulled by the springs of the features
+    // beyond it: at 10 mm from the seam it follows 1 - exp(-10 / 20) = 39 % of the opening.
+    scenario.stiffness_mm = 20.0;
+    CutDetectorOptions no_bridges;
+    no_bridges.bridge_radius_factor = 0.0;
+    const SeamRun without = RunSeam(g, scenario, no_bridges);
+    EXPECT_GT(without.died, 100);
+    EXPECT_EQ(without.bridged, 0);
+    EXPECT_LT(without.points.size(), 2u) << "no polyline without bridges";
+
+    const SeamRun run = RunSeam(g, scenario, CutDetectorOptions());
+    const CutDetectorOptions& options = run.resolved;
+    EXPECT_EQ(run.died, without.died);
+    EXPECT_GT(run.bridged, 0);
+    ASSERT_GE(run.points.size(), 5u) << "the 125 mm cut should give a polyline";
+    for (size_t i = 0; i < run.points.size(); ++i) {
+      const Eigen::Vector2d c = scenario.Coordinates(run.points[i].initial_position_mm);
+      EXPECT_LT(std::abs(c.y()), options.cut_point_radius_mm) << "cut point " << i;
+      EXPECT_LT(c.x(), run.tip_at_point[i] + options.cut_point_radius_mm) << "cut point " << i;
+      EXPECT_GT(c.x(), -options.cut_point_radius_mm);
+      if (i > 0) EXPECT_GT(c.x(), scenario.Coordinates(run.points[i - 1].initial_position_mm).x());
+    }
+    // Bridges span the 20 mm band of lost features, so the gap must open wider before they
+    // stand out: the extended polyline lags the tip by up to r_F more than with the lips
+    // tracked (2 r_pc there; 16 mm measured here).
+    EXPECT_GT(scenario.Coordinates(run.extended_initial.back()).x(),
+              scenario.tip_end_mm - 2 * options.cut_point_radius_mm - options.neighbour_radius_mm);
+  }
 }
 
 TEST(CutDetector, ImageOnlyMeasureAlsoFindsTheSeam) {

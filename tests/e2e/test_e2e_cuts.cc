@@ -99,15 +99,16 @@ TEST_P(EndToEndCut, RegistrationWithAndWithoutTopology) {
 }
 
 // Thresholds: what holds here (72 frames, seed 1) and at 120 frames on seeds 1 and 2, with the
-// default detector and spring parameters on every scene (docs/detection.md, "End-to-end
-// results"). Measured here: kidney-cut 2 cuts, 0.952 vs 0.903 without, Hausdorff means lower
-// (at 120 frames +0.049 / +0.010); band-cut-v no cut, 0.849 both (at 120 frames seed 2 one cut,
-// +0.034); band-cut-s 2 cuts, 0.926 vs 0.892 (+0.040 / +0.028); band-precut-side 1 cut, 0.937
-// vs 0.919 (+0.028 / +0.026); band-precut-middle 1 cut, 0.957 vs 0.957 (+0.002 / -0.001). Issue
-// 7 asks for Dice >= 0.95 and gains of +0.15 / +0.06: not met.
+// default detector and spring parameters on every scene (docs/cutting.md, "Session 6").
+// Measured here: kidney-cut 2 cuts, 0.953 vs 0.903 without, Hausdorff means lower (at 120
+// frames +0.054 / +0.027); band-cut-v 4 cuts, 0.964 vs 0.849 (at 120 frames 3 / 4 cuts, +0.092 /
+// +0.098: the lost lip features' pairs are bridged); band-cut-s 5 cuts, 0.934 vs 0.892 (+0.070 /
+// +0.074); band-precut-side 1 cut, 0.936 vs 0.919 (+0.028 / +0.032); band-precut-middle 1 cut,
+// 0.957 vs 0.957 (+0.002 / -0.001). Issue 7 asks for Dice >= 0.95 (not met at 120 frames on
+// band-cut-v seed 1, 0.943, and kidney-cut seed 2, 0.944) and gains of +0.15 / +0.06 (not met).
 INSTANTIATE_TEST_SUITE_P(Scenarios, EndToEndCut,
                          ::testing::Values(CutCase{"kidney-cut", 72, 1, 0.92, 0.005, true},
-                                           CutCase{"band-cut-v", 72, 0, 0.84, 0.0, false},
+                                           CutCase{"band-cut-v", 72, 2, 0.93, 0.08, false},
                                            CutCase{"band-cut-s", 72, 1, 0.90, 0.02, false},
                                            CutCase{"band-precut-side", 72, 1, 0.92, 0.01, false},
                                            CutCase{"band-precut-middle", 72, 1, 0.94, -0.005,

@@ -81,17 +81,6 @@ nlohmann::json TimesJson(const pipeline::StageTimes& t) {
           {"encode", t.encode},       {"record", t.record},   {"total", t.Total()}};
 }
 
-nlohmann::json CutEventJson(const pipeline::CutEvent& e) {
-  return {{"frame", e.frame},
-          {"status", e.status},
-          {"message", e.message},
-          {"polyline_points", e.polyline_points},
-          {"new_tetrahedra", e.new_tetrahedra},
-          {"new_vertices", e.new_vertices},
-          {"springs_removed", e.springs_removed},
-          {"internal_triangles_removed", e.internal_triangles_removed}};
-}
-
 nlohmann::json CameraJson(const PinholeCamera& c) {
   nlohmann::json rows = nlohmann::json::array();
   const Eigen::Matrix4d m = c.camera_from_world.matrix();
@@ -243,6 +232,7 @@ nlohmann::json MakeFrameRecord(const pipeline::FrameState& frame, const PinholeC
                  {"min_outliers", detector.min_outliers},
                  {"pairs_removed_by_cut", d.pairs_removed_by_cut},
                  {"pairs_removed_by_death", d.pairs_removed_by_death},
+                 {"pairs_bridged", d.pairs_bridged},
                  {"lone_features", d.lone_features},
                  {"one_sided_clusters", d.one_sided_clusters},
                  {"refused_points", d.refused_points},
@@ -259,7 +249,7 @@ nlohmann::json MakeFrameRecord(const pipeline::FrameState& frame, const PinholeC
 
   nlohmann::json events = nlohmann::json::array();
   if (frame.cut_events)
-    for (const pipeline::CutEvent& e : *frame.cut_events) events.push_back(CutEventJson(e));
+    for (const pipeline::CutEvent& e : *frame.cut_events) events.push_back(e.ToJson());
   rec["cut_events"] = std::move(events);
 
   if (frame.cut_surface && frame.cut_surface->num_faces() > 0) {

@@ -290,7 +290,7 @@ const char kViewerJs[] = R"JS('use strict';
       rows.push(['pairs', det.pairs.length], ['outlier pairs / n', det.outliers + ' / ' + det.min_outliers],
         ['mean mu [mm]', det.mean_mu], ['tau', det.tau], ['threshold tau*mean [mm]', det.threshold],
         ['new cut points', det.new_cut_points.length], ['polyline points', det.polyline_px.length],
-        ['pairs removed (cut / death)', det.pairs_removed_by_cut + ' / ' + det.pairs_removed_by_death]);
+        ['pairs removed (cut / death) / bridged', det.pairs_removed_by_cut + ' / ' + det.pairs_removed_by_death + ' / ' + det.pairs_bridged]);
     } else {
       rows.push(['cut detection', 'off']);
     }

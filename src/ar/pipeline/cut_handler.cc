@@ -2,6 +2,7 @@
 
 #include "core/error.h"
 #include "core/log.h"
+#include "core/mesh_ops.h"
 #include "cutting/cut_extrusion.h"
 #include "cutting/cut_surface.h"
 #include "cutting/mechanics_update.h"
@@ -56,6 +57,39 @@ SurfaceMesh CutHandler::NewPart(const std::vector<Eigen::Vector3d>& polyline_mm,
   return out;
 }
 
+namespace {
+
+// Depths of S behind the polyline tried by CuttingStageOptions::keep_connected, as fractions
+// of the extent that covers the model.
+constexpr double kDepthFractions[] = {1.0, 0.75, 0.5, 0.25};
+
+// Pieces of the model: elements connected through shared vertices.
+int Pieces(const cutting::CuttableMesh& mesh) {
+  int count = 0;
+  ConnectedComponents(mesh.RestMesh(), Adjacency::kVertex, &count);
+  return count;
+}
+
+}  // namespace
+
+cutting::CutSummary CutHandler::CutWithRetry(const SurfaceMesh& s, cutting::CutChange* change) {
+  const cutting::CutSurface cs{s.vertices, s.faces};
+  cutting::CutOptions co;
+  co.method = options_.method == "bielser" ? cutting::RemeshMethod::kBielser
+                                           : cutting::RemeshMethod::kFlips;
+  co.snap_epsilon = options_.snap_epsilon;
+  co.on_surface_tolerance = options_.on_surface_tolerance;
+  cutting::CutSummary cut = mesh_->Cut(cs, co, change);
+  const double exact_tolerance = cutting::CutOptions().on_surface_tolerance;
+  if (cut.status == cutting::CutStatus::kRejected && co.on_surface_tolerance > exact_tolerance) {
+    // Vertices merged into S can make S touch the boundary in a point (manifold guard);
+    // the exact test may resolve it (a rejected event leaves the mesh unchanged).
+    co.on_surface_tolerance = exact_tolerance;
+    cut = mesh_->Cut(cs, co, change);
+  }
+  return cut;
+}
+
 CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyline_mm,
                            const Eigen::Vector3d& eye_mm, const CutTargets& t,
                            SurfaceMesh* cut_surface) {
@@ -70,16 +104,8 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
   ev.frame = frame;
   ev.polyline_points = static_cast<int>(polyline_mm.size());
   try {
-    const cutting::CutExtrusionOptions ext = cutting::CutExtrusionCovering(
+    cutting::CutExtrusionOptions ext = cutting::CutExtrusionCovering(
         polyline_mm, eye_mm, state.positions(), options_.extrusion_margin_mm);
-    // Only the segments with a point not applied before are cut: the detector keeps its
-    // cut points (p^t at insertion), so a segment between two applied points lies on the
-    // crack already, and cutting it again with this frame's S (the model has moved since)
-    // would cross the elements along the crack a second time.
-    const SurfaceMesh s = NewPart(polyline_mm, eye_mm, ext);
-    ARREG_CHECK_INPUT(s.faces.rows() > 0, "", "CutHandler::Apply",
-                      "every segment of the polyline was applied before");
-    const cutting::CutSurface cs{s.vertices, s.faces};
     // The persistent topology is numbered like the state (events are its only changes);
     // it takes this frame's deformation, which may have inverted elements (see
     // CuttableMesh: those are subdivided in the rest configuration).
@@ -89,24 +115,35 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
                       " vertices and ", state.num_tetrahedra(), " elements, the cut topology ",
                       mesh_->num_vertices(), " and ", mesh_->num_tetrahedra());
     mesh_->SetDeformation(state.positions(), state.velocities());
-    cutting::CutOptions co;
-    co.method = options_.method == "bielser" ? cutting::RemeshMethod::kBielser
-                                             : cutting::RemeshMethod::kFlips;
-    co.snap_epsilon = options_.snap_epsilon;
-    co.on_surface_tolerance = options_.on_surface_tolerance;
-    cutting::CutChange change;
     const cutting::CuttableMesh before = *mesh_;
-    cutting::CutSummary cut = mesh_->Cut(cs, co, &change);
-    const double exact_tolerance = cutting::CutOptions().on_surface_tolerance;
-    if (cut.status == cutting::CutStatus::kRejected && co.on_surface_tolerance > exact_tolerance) {
-      // Vertices merged into S can make S touch the boundary in a point (manifold guard);
-      // the exact test may resolve it (a rejected event leaves the mesh unchanged).
-      co.on_surface_tolerance = exact_tolerance;
-      cut = mesh_->Cut(cs, co, &change);
+    const int pieces_before = options_.keep_connected ? Pieces(before) : 0;
+    // Only the segments with a point not applied before are cut: the detector keeps its
+    // cut points (p^t at insertion), so a segment between two applied points lies on the
+    // crack already, and cutting it again with this frame's S (the model has moved since)
+    // would cross the elements along the crack a second time.
+    SurfaceMesh s;
+    cutting::CutChange change;
+    cutting::CutSummary cut;
+    const double full_depth = ext.extent_away_from_camera_mm;
+    for (double depth : kDepthFractions) {
+      ext.extent_away_from_camera_mm = depth * full_depth;
+      s = NewPart(polyline_mm, eye_mm, ext);
+      ARREG_CHECK_INPUT(s.faces.rows() > 0, "", "CutHandler::Apply",
+                        "every segment of the polyline was applied before");
+      *mesh_ = before;
+      cut = CutWithRetry(s, &change);
+      if (cut.status != cutting::CutStatus::kCut || !options_.keep_connected ||
+          Pieces(*mesh_) <= pieces_before)
+        break;
+      cut.status = cutting::CutStatus::kRejected;
+      cut.message = "S splits the body at every depth tried (cutting.keep_connected)";
     }
+    if (cut.status != cutting::CutStatus::kCut) *mesh_ = before;
+    const cutting::CutSurface cs{s.vertices, s.faces};
     ev.message = cut.message;
     if (cut.status == cutting::CutStatus::kCut) {
       ev.status = "cut";
+      ev.depth_fraction = ext.extent_away_from_camera_mm / full_depth;
       const int v_before = state.num_vertices(), t_before = state.num_tetrahedra();
       std::vector<int> new_elements;
       try {

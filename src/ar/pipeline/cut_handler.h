@@ -55,6 +55,8 @@ class CutHandler {
 
  private:
   bool Applied(const Eigen::Vector3d& p) const;
+  // Cuts mesh_ with S; a rejection is retried with the exact on-surface test.
+  cutting::CutSummary CutWithRetry(const SurfaceMesh& s, cutting::CutChange* change);
   // The strips of the polyline's segments that have a point not applied before.
   SurfaceMesh NewPart(const std::vector<Eigen::Vector3d>& polyline_mm,
                       const Eigen::Vector3d& eye_mm, const cutting::CutExtrusionOptions& ext) const;

@@ -52,6 +52,9 @@ struct CutEvent {
   int new_vertices = 0;     // inserted + duplicated
   int springs_removed = 0;  // within the margin of S
   int internal_triangles_removed = 0;
+  // Depth of the applied S behind the polyline, as a fraction of the extent that covers the
+  // model (below 1 when CuttingStageOptions::keep_connected cut again shallower); 0 if none.
+  double depth_fraction = 0.0;
   nlohmann::json ToJson() const;
 };
 

@@ -185,11 +185,14 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("min_opening_balance", &o->detector.min_opening_balance);
   r.Optional("grow_at_extremities_only", &o->detector.grow_at_extremities_only);
   r.Optional("min_outlier_measure_mm", &o->detector.min_outlier_measure_mm);
+  r.Optional("bridge_radius_factor", &o->detector.bridge_radius_factor);
+  r.Optional("bridge_cone_half_angle_deg", &o->detector.bridge_cone_half_angle_deg);
   r.Optional("spring_margin_mm", &o->spring_margin_mm);
   r.Optional("extrusion_margin_mm", &o->extrusion_margin_mm);
   r.OptionalChoice("method", {"flips", "bielser"}, &o->method);
   r.Optional("snap_epsilon", &o->snap_epsilon);
   r.Optional("on_surface_tolerance", &o->on_surface_tolerance);
+  r.Optional("keep_connected", &o->keep_connected);
   r.Finish();
 }
 
@@ -286,11 +289,14 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"min_opening_balance", o.cutting.detector.min_opening_balance},
       {"grow_at_extremities_only", o.cutting.detector.grow_at_extremities_only},
       {"min_outlier_measure_mm", o.cutting.detector.min_outlier_measure_mm},
+      {"bridge_radius_factor", o.cutting.detector.bridge_radius_factor},
+      {"bridge_cone_half_angle_deg", o.cutting.detector.bridge_cone_half_angle_deg},
       {"spring_margin_mm", o.cutting.spring_margin_mm},
       {"extrusion_margin_mm", o.cutting.extrusion_margin_mm},
       {"method", o.cutting.method},
       {"snap_epsilon", o.cutting.snap_epsilon},
-      {"on_surface_tolerance", o.cutting.on_surface_tolerance}};
+      {"on_surface_tolerance", o.cutting.on_surface_tolerance},
+      {"keep_connected", o.cutting.keep_connected}};
   j["render"] = {{"enabled", o.render.enabled},
                  {"supersampling", o.render.supersampling},
                  {"organ_opacity", o.render.organ_opacity},

@@ -53,7 +53,8 @@ nlohmann::json CutEvent::ToJson() const {
           {"new_tetrahedra", new_tetrahedra},
           {"new_vertices", new_vertices},
           {"springs_removed", springs_removed},
-          {"internal_triangles_removed", internal_triangles_removed}};
+          {"internal_triangles_removed", internal_triangles_removed},
+          {"depth_fraction", depth_fraction}};
 }
 
 namespace {
