@@ -70,9 +70,11 @@ void CutDetectorOptions::Check() const {
   ARREG_CHECK_INPUT(std::isfinite(boundary_extension_mm) && boundary_extension_mm >= 0.0, "",
                     "cut_detector.boundary_extension_mm", "must be >= 0, got ",
                     boundary_extension_mm);
-  ARREG_CHECK_INPUT(boundary_cone_half_angle_deg > 0.0 && boundary_cone_half_angle_deg < 90.0, "",
-                    "cut_detector.boundary_cone_half_angle_deg", "must be in (0, 90), got ",
-                    boundary_cone_half_angle_deg);
+  const auto check_cone = [](double degrees, const char* field) {
+    ARREG_CHECK_INPUT(degrees > 0.0 && degrees < 90.0, "", field, "must be in (0, 90), got ",
+                      degrees);
+  };
+  check_cone(boundary_cone_half_angle_deg, "cut_detector.boundary_cone_half_angle_deg");
   ARREG_CHECK_INPUT(std::isfinite(min_opening_balance) && min_opening_balance >= 0.0 &&
                         min_opening_balance <= 1.0,
                     "", "cut_detector.min_opening_balance", "must be in [0, 1], got ",
@@ -80,9 +82,7 @@ void CutDetectorOptions::Check() const {
   ARREG_CHECK_INPUT(std::isfinite(bridge_radius_factor) && bridge_radius_factor >= 0.0, "",
                     "cut_detector.bridge_radius_factor", "must be >= 0 (0: no bridges), got ",
                     bridge_radius_factor);
-  ARREG_CHECK_INPUT(bridge_cone_half_angle_deg > 0.0 && bridge_cone_half_angle_deg < 90.0, "",
-                    "cut_detector.bridge_cone_half_angle_deg", "must be in (0, 90), got ",
-                    bridge_cone_half_angle_deg);
+  check_cone(bridge_cone_half_angle_deg, "cut_detector.bridge_cone_half_angle_deg");
   ARREG_CHECK_INPUT(max_cut_points_per_frame >= 1, "", "cut_detector.max_cut_points_per_frame",
                     "must be >= 1, got ", max_cut_points_per_frame);
 }
