@@ -147,7 +147,9 @@ TEST(DebugRecorder, PairsNameNeighboursByIdAndFlagOutliersAboveTauMean) {
       // C_F's pairs lie within r_F = 15 mm, the bridges of dead pairs within 2 r_F.
       const double d = (initial_of_id[a] - initial_of_id[b]).norm();
       EXPECT_LT(d, 2 * 15.0) << a << " " << b;
-      if (d >= 15.0) EXPECT_GT(bridged, 0) << "frame " << t << ": " << a << " " << b;
+      if (d >= 15.0) {
+        EXPECT_GT(bridged, 0) << "frame " << t << ": " << a << " " << b;
+      }
       const bool outlier = p[3].get<int>() != 0;
       EXPECT_EQ(outlier, p[2].get<double>() > threshold) << "frame " << t;
       outliers += outlier;

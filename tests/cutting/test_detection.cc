@@ -501,7 +501,9 @@ TEST(CutDetector, LostLipFeaturesAreBridged) {
       EXPECT_LT(std::abs(c.y()), options.cut_point_radius_mm) << "cut point " << i;
       EXPECT_LT(c.x(), run.tip_at_point[i] + options.cut_point_radius_mm) << "cut point " << i;
       EXPECT_GT(c.x(), -options.cut_point_radius_mm);
-      if (i > 0) EXPECT_GT(c.x(), scenario.Coordinates(run.points[i - 1].initial_position_mm).x());
+      if (i > 0) {
+        EXPECT_GT(c.x(), scenario.Coordinates(run.points[i - 1].initial_position_mm).x());
+      }
     }
     // Bridges span the 20 mm band of lost features, so the gap must open wider before they
     // stand out: the extended polyline lags the tip by up to r_F more than with the lips
