@@ -57,12 +57,13 @@ Field MakeField(int nx, int ny, double spacing_mm) {
 // One frame of a cut opening along y = 0 from x = 0 (tip advancing), the model following the
 // targets where the detector has already cut and staying connected elsewhere, with tracking
 // noise: frames without and with cut-point insertions, as in a real sequence. Features closer
-// than lip_loss_mm to the cut die once the gap at their place is 1 mm wide (*alive, per
+// than lip_loss_mm to the cut and beyond x = lip_loss_from_mm die once the gap at their place
+// is 1 mm wide (*alive, per
 // feature, is updated; the tracker loses the lips of a tear), which makes the detector bridge
 // their pairs. Returns the number of features that died in this frame.
 int MakeFrame(const Field& field, double tip_mm, double cut_extent_mm, double noise_mm,
-              double lip_loss_mm, double fade_mm, std::mt19937* rng, std::vector<char>* alive,
-              cutting::FrameFeatures* frame) {
+              double lip_loss_mm, double lip_loss_from_mm, double fade_mm, std::mt19937* rng,
+              std::vector<char>* alive, cutting::FrameFeatures* frame) {
   std::normal_distribution<double> noise(0.0, noise_mm);
   const int n = static_cast<int>(field.p0.rows());
   frame->ids.clear();
@@ -76,7 +77,7 @@ int MakeFrame(const Field& field, double tip_mm, double cut_extent_mm, double no
     const double follow = x <= cut_extent_mm ? 1.0 : 1.0 - std::exp(-std::abs(y) / fade_mm);
     // Drawn for every feature, so the noise does not depend on which features are alive.
     const double nx = noise(*rng), ny = noise(*rng);
-    if ((*alive)[r] && std::abs(y) < lip_loss_mm && open >= 1.0) {
+    if ((*alive)[r] && std::abs(y) < lip_loss_mm && x > lip_loss_from_mm && open >= 1.0) {
       (*alive)[r] = 0;
       ++died;
     }
@@ -99,7 +100,8 @@ int MakeFrame(const Field& field, double tip_mm, double cut_extent_mm, double no
 
 int RunBenchDetection(int argc, char** argv) {
   int nx = 35, ny = 20, frames = 200, repeats = 5, seed = 1;
-  double spacing_mm = 4.8, noise_mm = 0.25, lip_loss_mm = 0.0, fade_mm = 8.0;
+  double spacing_mm = 4.8, noise_mm = 0.25, lip_loss_mm = 0.0, lip_loss_from_mm = 30.0,
+         fade_mm = 8.0;
   std::string json_path;
   cutting::CutDetectorOptions options;
   OptionParser parser(
@@ -116,6 +118,9 @@ int RunBenchDetection(int argc, char** argv) {
   parser.AddDouble("lip-loss", &lip_loss_mm, "MM",
                    "features closer than this to the cut die once it opens 1 mm there, and the "
                    "detector bridges their pairs (0: none die)");
+  parser.AddDouble("lip-loss-from", &lip_loss_from_mm, "MM",
+                   "lips are lost only beyond this distance along the cut (bridges continue a "
+                   "cut that pairs of tracked features started)");
   parser.AddDouble("model-fade", &fade_mm, "MM",
                    "the uncut model follows the opening by 1 - exp(-d / MM) at distance d from "
                    "the cut");
@@ -159,8 +164,8 @@ int RunBenchDetection(int argc, char** argv) {
       double cut_extent = -std::numeric_limits<double>::infinity();
       for (const Eigen::Vector3d& p : detector.ExtendedPolyline(true))
         cut_extent = std::max(cut_extent, p.x());
-      const int died = MakeFrame(field, -5.0 + k, cut_extent, noise_mm, lip_loss_mm, fade_mm, &rng,
-                                 &alive, &frame);
+      const int died = MakeFrame(field, -5.0 + k, cut_extent, noise_mm, lip_loss_mm,
+                                 lip_loss_from_mm, fade_mm, &rng, &alive, &frame);
       const auto start = Clock::now();
       detector.Update(frame, &result);
       const double ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
@@ -201,6 +206,7 @@ int RunBenchDetection(int argc, char** argv) {
     j["update_ms_max"] = worst;
     j["update_with_insertion_ms_median"] = Median(insert_ms);
     j["lip_loss_mm"] = lip_loss_mm;
+    j["lip_loss_from_mm"] = lip_loss_from_mm;
     j["model_fade_mm"] = fade_mm;
     j["update_with_deaths_ms_median"] = Median(death_ms);
     j["frames_with_deaths"] = death_ms.size();

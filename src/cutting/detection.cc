@@ -334,6 +334,12 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   // Cut points: the mean stays that of the frame while further points are inserted, and only the
   // pairs still present count (removed ones were pruned around earlier points).
   candidates_ = result->outliers;
+  // Bridges continue a cut; they do not start one (see bridge_radius_factor): before the first
+  // point only pairs of C_F are candidates.
+  if (polyline_.empty())
+    candidates_.erase(std::remove_if(candidates_.begin(), candidates_.end(),
+                                     [&](int k) { return result->pairs[k].bridge; }),
+                      candidates_.end());
   for (int inserted = 0; inserted < options_.max_cut_points_per_frame; ++inserted) {
     // Select a cluster and its point; clusters rejected as one feature's star, as one-sided or
     // as no growth of the polyline leave the candidates and the next one is tried.
@@ -371,6 +377,18 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
       // (pairs from the cut part to the whole part ahead are one-sided by construction).
       const bool grows = !polyline_.empty() && (NearExtremity(point, polyline_.front()) ||
                                                 NearExtremity(point, polyline_.back()));
+      // Bridges continue a cut; they do not start one (see bridge_radius_factor): a point that
+      // would start a polyline needs n among the cluster's pairs of C_F.
+      if (!grows) {
+        cluster_of_cf_.clear();
+        for (int k : cluster_)
+          if (!result->pairs[k].bridge) cluster_of_cf_.push_back(k);
+        if (OutlierCount(cluster_of_cf_, *result) < options_.min_outliers) {
+          ++result->refused_points;
+          DropClusterFromCandidates();
+          continue;
+        }
+      }
       if (options_.cluster_outliers && options_.min_opening_balance > 0.0 && !grows &&
           OpeningBalance(*result) < options_.min_opening_balance) {
         ++result->one_sided_clusters;

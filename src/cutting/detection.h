@@ -156,7 +156,11 @@ struct CutDetectorOptions {
   // C_F spans the cut and the thesis's measure cannot see it grow (synthetic v-band: no pair
   // across the tear below its first 10 mm). A bridge takes the lost neighbour's place in the
   // same direction, so a pair that spanned the gap still does. Pairs never grow in number:
-  // each dead pair gives at most one bridge. Default 2.
+  // each dead pair gives at most one bridge. Bridges only continue a cut: before the first cut
+  // point they are no candidates, and a point that would start a polyline needs n among its
+  // cluster's pairs of C_F (features also die where the strain concentrates; on band-stretch
+  // seed 4, after the stem corner's one-sided cluster had been rejected for 24 frames, a
+  // cluster with bridges there started a false cut). Default 2.
   double bridge_radius_factor = 2.0;
   // [deg] half-angle of the cone around a dead neighbour's direction searched for its bridge.
   // Default 30.
@@ -292,6 +296,7 @@ class CutDetector {
   RowMatX3d target_mm_;  // (#F x 3) p^1
   std::vector<int> candidates_;
   std::vector<int> cluster_;
+  std::vector<int> cluster_of_cf_;  // cluster_ without its bridges
   std::vector<int> cluster_count_;  // per feature: pairs of cluster_ it is in (0 between uses)
 };
 
