@@ -206,13 +206,14 @@ int CutDetector::BridgeFeature(int l, int dead) {
   const int n = num_features();
   const Eigen::Vector3d pl = initial_mm_.row(l).transpose();
   const Eigen::Vector3d towards = initial_mm_.row(dead).transpose() - pl;
-  if (options_.bridge_radius_factor <= 0.0 || towards.norm() == 0.0) return -1;
+  const double towards_norm = towards.norm();
+  if (options_.bridge_radius_factor <= 0.0 || towards_norm == 0.0) return -1;
   const double cos_cone = std::cos(options_.bridge_cone_half_angle_deg * kPi / 180.0);
   const double r_pc2 = options_.cut_point_radius_mm * options_.cut_point_radius_mm;
   for (int m : BridgeCandidates(l)) {
     if (!alive_[m]) continue;
     const Eigen::Vector3d v = initial_mm_.row(m).transpose() - pl;
-    if (v.dot(towards) < cos_cone * v.norm() * towards.norm()) continue;
+    if (v.dot(towards) < cos_cone * v.norm() * towards_norm) continue;
     const long long pair_key = static_cast<long long>(std::min(l, m)) * n + std::max(l, m);
     if (ever_paired_.count(pair_key)) continue;
     bool crosses_cut = false;
@@ -321,8 +322,8 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
       sum += mu;
     }
   }
-  const int measured = num_pairs > bridges ? num_pairs - bridges : num_pairs;
-  const double mean = measured > 0 ? (num_pairs > bridges ? sum : bridge_sum) / measured : 0.0;
+  const int of_cf = num_pairs - bridges;
+  const double mean = of_cf > 0 ? sum / of_cf : (bridges > 0 ? bridge_sum / bridges : 0.0);
   result->mean_measure = mean;
   threshold_ = std::max(options_.outlier_factor * mean, options_.min_outlier_measure_mm);
   for (int k = 0; k < num_pairs; ++k) {

@@ -121,29 +121,31 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
     // cut points (p^t at insertion), so a segment between two applied points lies on the
     // crack already, and cutting it again with this frame's S (the model has moved since)
     // would cross the elements along the crack a second time.
+    // A cut that is not applied leaves mesh_ unchanged; one that splits the body is undone.
     SurfaceMesh s;
     cutting::CutChange change;
     cutting::CutSummary cut;
     const double full_depth = ext.extent_away_from_camera_mm;
-    for (double depth : kDepthFractions) {
+    double depth = 0.0;
+    for (double fraction : kDepthFractions) {
+      depth = fraction;
       ext.extent_away_from_camera_mm = depth * full_depth;
       s = NewPart(polyline_mm, eye_mm, ext);
       ARREG_CHECK_INPUT(s.faces.rows() > 0, "", "CutHandler::Apply",
                         "every segment of the polyline was applied before");
-      *mesh_ = before;
       cut = CutWithRetry(s, &change);
       if (cut.status != cutting::CutStatus::kCut || !options_.keep_connected ||
           Pieces(*mesh_) <= pieces_before)
         break;
+      *mesh_ = before;
       cut.status = cutting::CutStatus::kRejected;
       cut.message = "S splits the body at every depth tried (cutting.keep_connected)";
     }
-    if (cut.status != cutting::CutStatus::kCut) *mesh_ = before;
     const cutting::CutSurface cs{s.vertices, s.faces};
     ev.message = cut.message;
     if (cut.status == cutting::CutStatus::kCut) {
       ev.status = "cut";
-      ev.depth_fraction = ext.extent_away_from_camera_mm / full_depth;
+      ev.depth_fraction = depth;
       const int v_before = state.num_vertices(), t_before = state.num_tetrahedra();
       std::vector<int> new_elements;
       try {
