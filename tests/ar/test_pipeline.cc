@@ -269,6 +269,12 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
   scene.cutting = {{"keep_connected", 1.5}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  // Session 7: where S is cut.
+  EXPECT_EQ(o.cutting.cut_configuration, "rest");
+  scene.cutting = {{"cut_configuration", "current"}};
+  EXPECT_EQ(ReadPipelineOptions(scene).cutting.cut_configuration, "current");
+  scene.cutting = {{"cut_configuration", "deformed"}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
 }
 
 TEST(Overlay, DrawsOnlyOverTheOrganAndBlendsByOpacity) {

@@ -187,6 +187,57 @@ TEST(CutContinuation, CurvedProgressiveCutMovesFrontVertices) {
   EXPECT_LT(added[1], 0.7 * added[0]);
 }
 
+// A crack grown across the beam by events that each cut the whole S so far (the pipeline in
+// the rest configuration, cutting.cut_configuration "rest"): the part cut before lies on S
+// and is left as it is, the new part continues it, and the beam comes apart in two once S
+// spans its width. (Strips that only meet, each event cutting the new band alone, leave
+// the faces at their junctions sewn: docs/cutting.md, Limits.) Several event counts, both
+// methods, with and without snapping, with the exact and the pipeline's on-surface test.
+TEST(CutContinuation, GrowingTheWholeSurfaceSeparatesTheBody) {
+  const TetMesh rest = Beam();
+  const double v0 = CheckMeshInvariants(rest).total_volume;
+  const Eigen::Vector3d normal = Eigen::Vector3d(1, 0.07, 0.04).normalized();
+  const Eigen::Vector3d centre(20.3, 6, 4);
+  // The plane through `centre` with this normal, from y = -1 to y_end, across all of z.
+  auto surface_to = [&](double y_end) {
+    return MakeGridSurface(
+        [&](double a, double b) {
+          const Eigen::Vector3d p(20.3, -1 + (y_end + 1) * a, -10 + 28 * b);
+          return Eigen::Vector3d(p - normal * normal.dot(p - centre));
+        },
+        8, 8);
+  };
+  for (int events : {2, 3, 5, 8}) {
+    for (RemeshMethod method : {RemeshMethod::kFlips, RemeshMethod::kBielser}) {
+      for (double tolerance : {1e-9, 0.25}) {
+        for (double eps : {0.0, 0.1}) {
+          SCOPED_TRACE(::testing::Message() << events << " events, method " << int(method)
+                                            << ", tolerance " << tolerance << ", eps " << eps);
+          CuttableMesh m(rest);
+          CutOptions opt;
+          opt.method = method;
+          opt.snap_epsilon = eps;
+          opt.on_surface_tolerance = tolerance;
+          for (int k = 1; k <= events; ++k) {
+            const double y_end = -1 + 14.0 * k / events;
+            const CutSummary s = m.Cut(surface_to(y_end), opt);
+            ASSERT_EQ(s.status, CutStatus::kCut) << "event " << k << ": " << s.message;
+            const MeshInvariants inv = CheckMeshInvariants(m.RestMesh());
+            ASSERT_TRUE(inv.ok()) << inv.ToString();
+            ASSERT_NEAR(inv.total_volume, v0, 1e-9 * v0);
+            // One piece while S ends well inside (vertices within the tolerance of S's edge
+            // count as on S, so the tolerant test may open the far side one event early).
+            if (y_end <= 10) {
+              EXPECT_EQ(NumPieces(m.RestMesh()), 1) << "event " << k;
+            }
+          }
+          EXPECT_EQ(NumPieces(m.RestMesh()), 2);
+        }
+      }
+    }
+  }
+}
+
 // Snapped vertices move in rest and current configuration alike, and the state's rest
 // data follow: an undeformed body cut with snapping has no elastic force, and neither has a
 // rigidly moved one (corotational elasticity).

@@ -1,5 +1,6 @@
 #include "ar/pipeline/cut_handler.h"
 
+#include "ar/lift/lifting.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "core/mesh_ops.h"
@@ -63,11 +64,61 @@ namespace {
 // of the extent that covers the model.
 constexpr double kDepthFractions[] = {1.0, 0.75, 0.5, 0.25};
 
-// Pieces of the model: elements connected through shared vertices.
-int Pieces(const cutting::CuttableMesh& mesh) {
-  int count = 0;
-  ConnectedComponents(mesh.RestMesh(), Adjacency::kVertex, &count);
+// A piece of the model holding less than this fraction of its rest volume is a sliver.
+constexpr double kSliverFraction = 0.05;
+
+struct PieceCount {
+  int pieces = 0;   // elements connected through shared vertices
+  int slivers = 0;  // of them, those below kSliverFraction of the volume
+};
+
+PieceCount Pieces(const cutting::CuttableMesh& mesh) {
+  PieceCount count;
+  const TetMesh rest = mesh.RestMesh();
+  const Eigen::VectorXi piece = ConnectedComponents(rest, Adjacency::kVertex, &count.pieces);
+  const Eigen::VectorXd volumes = TetVolumes(rest);
+  std::vector<double> volume(count.pieces, 0.0);
+  for (int t = 0; t < rest.num_tetrahedra(); ++t) volume[piece(t)] += volumes(t);
+  for (double v : volume) count.slivers += v < kSliverFraction * volumes.sum();
   return count;
+}
+
+// An end of the crack this close to the model's outline, in mean rest edge lengths, is
+// carried across it: the elements between could not hold a ligament that thin, and a crack
+// that stops a fraction of an element short of the border keeps its lips sewn there (a slit
+// from the side, its look-ahead ending 0.4 mm inside the band's edge).
+constexpr double kBorderSnapEdges = 0.5;
+
+// `line` with each end moved on along its last segment to just beyond the outline of the
+// model seen from `eye_mm`, when the outline is within kBorderSnapEdges edge lengths of it.
+// The outline is where the rays from the eye stop hitting the surface `boundary`.
+std::vector<Eigen::Vector3d> CarryEndsAcrossTheOutline(std::vector<Eigen::Vector3d> line,
+                                                       const Eigen::Vector3d& eye_mm,
+                                                       const SurfaceMesh& boundary,
+                                                       double edge_mm) {
+  if (line.size() < 2 || edge_mm <= 0) return line;
+  lift::TriangleBvh bvh;
+  bvh.Build(boundary.vertices, boundary.faces);
+  auto over_model = [&](const Eigen::Vector3d& q) {
+    Ray ray;
+    ray.origin_in_world = eye_mm;
+    ray.direction_in_world = (q - eye_mm).normalized();
+    lift::RayHit hit;
+    return bvh.Intersect(ray, &hit);
+  };
+  const double step = edge_mm / 8;
+  for (int end = 0; end < 2; ++end) {
+    Eigen::Vector3d& tip = end == 0 ? line.front() : line.back();
+    const Eigen::Vector3d& prev = end == 0 ? line[1] : line[line.size() - 2];
+    if ((tip - prev).norm() == 0 || !over_model(tip)) continue;
+    const Eigen::Vector3d dir = (tip - prev).normalized();
+    for (double d = step; d <= kBorderSnapEdges * edge_mm + 1e-9; d += step) {
+      if (over_model(tip + d * dir)) continue;
+      tip += (d + edge_mm / 2) * dir;
+      break;
+    }
+  }
+  return line;
 }
 
 }  // namespace
@@ -91,6 +142,7 @@ cutting::CutSummary CutHandler::CutWithRetry(const SurfaceMesh& s, cutting::CutC
 }
 
 CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyline_mm,
+                           const std::vector<Eigen::Vector3d>& rest_polyline_mm,
                            const Eigen::Vector3d& eye_mm, const CutTargets& t,
                            SurfaceMesh* cut_surface) {
   ARREG_CHECK_INPUT(t.state && t.springs && t.features && t.features_rest_mm &&
@@ -104,48 +156,81 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
   ev.frame = frame;
   ev.polyline_points = static_cast<int>(polyline_mm.size());
   try {
-    cutting::CutExtrusionOptions ext = cutting::CutExtrusionCovering(
-        polyline_mm, eye_mm, state.positions(), options_.extrusion_margin_mm);
-    // The persistent topology is numbered like the state (events are its only changes);
-    // it takes this frame's deformation, which may have inverted elements (see
-    // CuttableMesh: those are subdivided in the rest configuration).
+    ARREG_CHECK_INPUT(rest_polyline_mm.size() == polyline_mm.size(), "", "CutHandler::Apply",
+                      "the polyline has ", polyline_mm.size(), " points at frame ", frame, " and ",
+                      rest_polyline_mm.size(), " at frame 0");
+    // The persistent topology is numbered like the state (events are its only changes).
     ARREG_CHECK_INPUT(mesh_->num_vertices() == state.num_vertices() &&
                           mesh_->num_tetrahedra() == state.num_tetrahedra(),
                       "", "CutHandler::Apply", "the state has ", state.num_vertices(),
                       " vertices and ", state.num_tetrahedra(), " elements, the cut topology ",
                       mesh_->num_vertices(), " and ", mesh_->num_tetrahedra());
-    mesh_->SetDeformation(state.positions(), state.velocities());
     const cutting::CuttableMesh before = *mesh_;
-    const int pieces_before = options_.keep_connected ? Pieces(before) : 0;
-    // Only the segments with a point not applied before are cut: the detector keeps its
-    // cut points (p^t at insertion), so a segment between two applied points lies on the
-    // crack already, and cutting it again with this frame's S (the model has moved since)
-    // would cross the elements along the crack a second time.
+    const PieceCount pieces_before = Pieces(before);
+    // In the rest configuration (the frame-0 polyline along the frame-0 rays) S of the applied
+    // segments is the same surface as before and lies on the crack, so the whole polyline is
+    // cut and the new part continues the crack where the last event left it. In the current
+    // configuration (this frame's polyline and rays; the model may have inverted elements,
+    // which CuttableMesh subdivides in the rest configuration) only the segments with a point
+    // not applied before are cut: the detector keeps its cut points, so a segment between two
+    // applied points lies on the crack already, and cutting it again with this frame's S
+    // (the model has moved since) would cross the elements along the crack a second time.
+    // An event the rest configuration cannot apply, or that would cut off a sliver there (the
+    // polyline turned away from an earlier look-ahead, and the two cracks cut off the elements
+    // between them), is tried in the current configuration.
     // A cut that is not applied leaves mesh_ unchanged; one that splits the body is undone.
     SurfaceMesh s;
     cutting::CutChange change;
     cutting::CutSummary cut;
-    const double full_depth = ext.extent_away_from_camera_mm;
     double depth = 0.0;
-    for (double fraction : kDepthFractions) {
-      depth = fraction;
-      ext.extent_away_from_camera_mm = depth * full_depth;
-      s = NewPart(polyline_mm, eye_mm, ext);
-      ARREG_CHECK_INPUT(s.faces.rows() > 0, "", "CutHandler::Apply",
-                        "every segment of the polyline was applied before");
-      cut = CutWithRetry(s, &change);
-      if (cut.status != cutting::CutStatus::kCut || !options_.keep_connected ||
-          Pieces(*mesh_) <= pieces_before)
-        break;
-      *mesh_ = before;
-      cut.status = cutting::CutStatus::kRejected;
-      cut.message = "S splits the body at every depth tried (cutting.keep_connected)";
+    bool in_rest = false;
+    std::vector<bool> configurations = {false};
+    if (options_.cut_configuration == "rest") configurations = {true, false};
+    for (bool rest : configurations) {
+      in_rest = rest;
+      const double edge_mm = mesh_->mean_rest_edge_length();
+      const std::vector<Eigen::Vector3d> line =
+          rest ? CarryEndsAcrossTheOutline(rest_polyline_mm, eye_mm,
+                                           ExtractBoundary(state.RestMesh()), edge_mm)
+               : polyline_mm;
+      const RowMatX3d& positions = rest ? state.rest_positions() : state.positions();
+      if (rest)
+        mesh_->SetDeformation(state.rest_positions(), RowMatX3d::Zero(state.num_vertices(), 3));
+      else
+        mesh_->SetDeformation(state.positions(), state.velocities());
+      cutting::CutExtrusionOptions ext =
+          cutting::CutExtrusionCovering(line, eye_mm, positions, options_.extrusion_margin_mm);
+      const double full_depth = ext.extent_away_from_camera_mm;
+      for (double fraction : kDepthFractions) {
+        depth = fraction;
+        ext.extent_away_from_camera_mm = depth * full_depth;
+        s = rest ? cutting::ExtrudeCutPolyline(line, eye_mm, ext) : NewPart(line, eye_mm, ext);
+        ARREG_CHECK_INPUT(s.faces.rows() > 0, "", "CutHandler::Apply",
+                          "every segment of the polyline was applied before");
+        cut = CutWithRetry(s, &change);
+        if (cut.status != cutting::CutStatus::kCut) break;
+        const PieceCount after = Pieces(*mesh_);
+        if (rest && after.slivers > pieces_before.slivers) {
+          // The polyline turned away from an earlier look-ahead, and the two cracks cut off
+          // the elements between them; this frame's strip (current configuration) may not.
+          *mesh_ = before;
+          cut.status = cutting::CutStatus::kRejected;
+          cut.message = "S cuts off a sliver of the model";
+          break;
+        }
+        if (!options_.keep_connected || after.pieces <= pieces_before.pieces) break;
+        *mesh_ = before;
+        cut.status = cutting::CutStatus::kRejected;
+        cut.message = "S splits the body at every depth tried (cutting.keep_connected)";
+      }
+      if (cut.status == cutting::CutStatus::kCut) break;
     }
     const cutting::CutSurface cs{s.vertices, s.faces};
     ev.message = cut.message;
     if (cut.status == cutting::CutStatus::kCut) {
       ev.status = "cut";
       ev.depth_fraction = depth;
+      ev.configuration = in_rest ? "rest" : "current";
       const int v_before = state.num_vertices(), t_before = state.num_tetrahedra();
       std::vector<int> new_elements;
       try {
@@ -161,17 +246,19 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
         if (features[r].spring >= 0)
           t.springs->SetAnchor(features[r].spring, (*t.feature_embedding)[r]);
       std::vector<SurfaceMesh>& internal = *t.internal;
+      // Internal triangles and springs are tested against S in the configuration it was cut
+      // in: in the rest one the lips have not moved apart, and a spring's side is its rest one.
+      const RowMatX3d& after = in_rest ? state.rest_positions() : state.positions();
       for (size_t k = 0; k < internal.size(); ++k) {
         cutting::ReembedAfterCut(change, new_elements, state, (*t.internal_rest_mm)[k],
                                  &(*t.internal_embedding)[k]);
-        const RowMatX3d current =
-            (*t.internal_embedding)[k].Positions(state.positions(), state.tetrahedra());
-        const RowMatX3i kept = cutting::RemoveTrianglesCrossing(current, internal[k].faces, cs);
+        const RowMatX3d points = (*t.internal_embedding)[k].Positions(after, state.tetrahedra());
+        const RowMatX3i kept = cutting::RemoveTrianglesCrossing(points, internal[k].faces, cs);
         ev.internal_triangles_removed += static_cast<int>(internal[k].faces.rows() - kept.rows());
         internal[k].faces = kept;
       }
       RowMatX3d anchors;
-      t.feature_embedding->Positions(state.positions(), state.tetrahedra(), &anchors);
+      t.feature_embedding->Positions(after, state.tetrahedra(), &anchors);
       for (int idx : cutting::PointsWithinMargin(s, anchors, options_.spring_margin_mm)) {
         FeatureView& v = features[idx];
         if (!v.spring_active) continue;
@@ -185,7 +272,12 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
     } else {
       ev.status = cut.status == cutting::CutStatus::kNoCrossing ? "no-crossing" : "rejected";
     }
-    if (cut_surface) *cut_surface = cutting::ExtrudeCutPolyline(polyline_mm, eye_mm, ext);
+    if (cut_surface) {
+      cutting::CutExtrusionOptions shown = cutting::CutExtrusionCovering(
+          polyline_mm, eye_mm, state.positions(), options_.extrusion_margin_mm);
+      shown.extent_away_from_camera_mm *= depth;
+      *cut_surface = cutting::ExtrudeCutPolyline(polyline_mm, eye_mm, shown);
+    }
   } catch (const Error& e) {
     ev.status = "failed";
     ev.message = e.what();

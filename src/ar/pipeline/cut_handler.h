@@ -40,13 +40,17 @@ class CutHandler {
   CutHandler(const CuttingStageOptions& options, const mechanics::MechanicalState& state);
   ~CutHandler();
 
-  // One detected cut in frame `frame`: extrudes `polyline_mm` (world, mm) along the rays from
-  // `eye_mm` into S, cuts the model, applies the change to the mechanical state, re-embeds
-  // features and internal structures, deletes internal triangles crossing S (eq. 7.12) and
-  // removes the springs within options.spring_margin_mm of S. The returned event says what
-  // happened ("cut", "no-crossing", "rejected", or "failed" with the error text; the targets
-  // are then unchanged). `cut_surface` (optional) receives S.
+  // One detected cut in frame `frame`: extrudes the polyline along the rays from `eye_mm` into
+  // S, cuts the model, applies the change to the mechanical state, re-embeds features and
+  // internal structures, deletes internal triangles crossing S (eq. 7.12) and removes the
+  // springs within options.spring_margin_mm of S. `polyline_mm` is the detector's (extended)
+  // polyline in this frame (world, mm), `rest_polyline_mm` the same points at frame 0, where
+  // the model is in its rest configuration (options.cut_configuration says which one is cut).
+  // The returned event says what happened ("cut", "no-crossing", "rejected", or "failed" with
+  // the error text; the targets are then unchanged). `cut_surface` (optional) receives S
+  // extruded from `polyline_mm` (this frame's view of it).
   CutEvent Apply(int frame, const std::vector<Eigen::Vector3d>& polyline_mm,
+                 const std::vector<Eigen::Vector3d>& rest_polyline_mm,
                  const Eigen::Vector3d& eye_mm, const CutTargets& targets,
                  SurfaceMesh* cut_surface = nullptr);
 

@@ -55,6 +55,9 @@ struct CutEvent {
   // Depth of the applied S behind the polyline, as a fraction of the extent that covers the
   // model (below 1 when CuttingStageOptions::keep_connected cut again shallower); 0 if none.
   double depth_fraction = 0.0;
+  // Configuration S was built and cut in: "rest" or "current" (CuttingStageOptions::
+  // cut_configuration; "current" also when the rest one could not apply); "" if none.
+  std::string configuration;
   nlohmann::json ToJson() const;
 };
 

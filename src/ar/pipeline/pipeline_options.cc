@@ -44,6 +44,9 @@ void CuttingStageOptions::Check() const {
                     "cutting.on_surface_tolerance", "must be >= 0, got ", on_surface_tolerance);
   ARREG_CHECK_INPUT(method == "flips" || method == "bielser", "", "cutting.method",
                     "must be \"flips\" or \"bielser\", got \"", method, "\"");
+  ARREG_CHECK_INPUT(cut_configuration == "rest" || cut_configuration == "current", "",
+                    "cutting.cut_configuration", "must be \"rest\" or \"current\", got \"",
+                    cut_configuration, "\"");
 }
 
 void RenderStageOptions::Check() const {
@@ -193,6 +196,7 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("snap_epsilon", &o->snap_epsilon);
   r.Optional("on_surface_tolerance", &o->on_surface_tolerance);
   r.Optional("keep_connected", &o->keep_connected);
+  r.OptionalChoice("cut_configuration", {"rest", "current"}, &o->cut_configuration);
   r.Finish();
 }
 
@@ -296,7 +300,8 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"method", o.cutting.method},
       {"snap_epsilon", o.cutting.snap_epsilon},
       {"on_surface_tolerance", o.cutting.on_surface_tolerance},
-      {"keep_connected", o.cutting.keep_connected}};
+      {"keep_connected", o.cutting.keep_connected},
+      {"cut_configuration", o.cutting.cut_configuration}};
   j["render"] = {{"enabled", o.render.enabled},
                  {"supersampling", o.render.supersampling},
                  {"organ_opacity", o.render.organ_opacity},

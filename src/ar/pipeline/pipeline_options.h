@@ -85,6 +85,12 @@ struct CuttingStageOptions {
   // Set false for scenes where a piece is cut off: the full-depth S is applied always.
   // Default true.
   bool keep_connected = true;
+  // Where S is built and cut: "rest" (default) extrudes the polyline of the cut points' frame-0
+  // positions along the frame-0 rays and cuts the rest configuration with the whole polyline
+  // at every event, so each event continues the crack exactly where the last one left it;
+  // "current" extrudes this frame's polyline and cuts only its new segments (the thesis; the
+  // strips of successive frames meet along lines that stay sewn, see docs/cutting.md).
+  std::string cut_configuration = "rest";
   void Check() const;
 };
 

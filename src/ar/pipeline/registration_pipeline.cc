@@ -54,7 +54,8 @@ nlohmann::json CutEvent::ToJson() const {
           {"new_vertices", new_vertices},
           {"springs_removed", springs_removed},
           {"internal_triangles_removed", internal_triangles_removed},
-          {"depth_fraction", depth_fraction}};
+          {"depth_fraction", depth_fraction},
+          {"configuration", configuration}};
 }
 
 namespace {
@@ -411,6 +412,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       if (detection.segment_added && detection.extended_polyline_mm.size() >= 2) {
         SurfaceMesh s;
         const CutEvent ev = cut_handler->Apply(frame, detection.extended_polyline_mm,
+                                               detector->ExtendedPolyline(true),
                                                camera.CenterInWorld(), cut_targets, &s);
         if (ev.status == "cut") {
           feature_embedding.Positions(state.positions(), state.tetrahedra(), &anchors);
