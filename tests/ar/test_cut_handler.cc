@@ -66,30 +66,33 @@ struct Model {
   }
 };
 
-// A cut growing across a 40 x 40 x 20 mm block seen from above, one cut point per event
-// (the detector's polyline with a 7 mm look-ahead), while the block moves and bends a little
-// between events: every event applies on the persistent topology, the state stays numbered
-// like it, the rest volume is kept, the growth stays that of one cut (the crack is not cut
-// again), and at the end the block is in two pieces, the sheet inside cut along the line (a
-// transection: keep_connected off).
-// One event across the whole 40 x 40 x 20 mm block seen from above. The S that spans the
-// block's depth along the rays cuts it in two; with keep_connected (the default) S is cut
-// again shallower and the block stays in one piece, open from the top, the rest volume kept.
+// One event across the whole 40 x 40 x 20 mm block seen from above, the block moved since
+// the handler was made. The S that spans the block's depth along the rays cuts it in two;
+// with keep_connected (the default) S is cut again shallower (each try from this frame's
+// state) and the block stays in one piece, open from the top, the rest volume kept. Both
+// configurations.
 TEST(CutHandler, KeepConnectedCutsShallowerInsteadOfSplitting) {
   const TetMesh block =
       MakeBoxTetMesh(Eigen::Vector3d(40, 40, 20), Eigen::Vector3i(8, 8, 4), BoxTetSplit::kSix);
   const double v0 = cutting::CheckMeshInvariants(block).total_volume;
-  const Eigen::Vector3d eye(20, 20, 200);
-  const std::vector<Eigen::Vector3d> polyline = {Eigen::Vector3d(-5, 20.3, 20),
-                                                 Eigen::Vector3d(45, 20.3, 20)};
-  for (bool keep : {true, false}) {
-    SCOPED_TRACE(keep ? "keep_connected" : "transection");
+  const Eigen::Vector3d eye(20, 20, 200), moved(6, -4, 0);
+  const std::vector<Eigen::Vector3d> rest_line = {Eigen::Vector3d(-5, 20.3, 20),
+                                                  Eigen::Vector3d(45, 20.3, 20)};
+  const std::vector<Eigen::Vector3d> line = {rest_line[0] + moved, rest_line[1] + moved};
+  for (int k = 0; k < 4; ++k) {
+    const bool keep = k < 2;
+    const char* configuration = k % 2 ? "current" : "rest";
+    SCOPED_TRACE(::testing::Message()
+                 << (keep ? "keep_connected, " : "transection, ") << configuration);
     Model model(block);
     CuttingStageOptions options;
     EXPECT_TRUE(options.keep_connected);
     options.keep_connected = keep;
+    options.cut_configuration = configuration;
     CutHandler handler(options, model.state);
-    const CutEvent ev = handler.Apply(0, polyline, polyline, eye, model.Targets());
+    model.state.mutable_positions().rowwise() += moved.transpose();
+    const CutEvent ev = handler.Apply(0, line, rest_line, eye, model.Targets());
+    EXPECT_EQ(ev.configuration, configuration);
     ASSERT_EQ(ev.status, "cut") << ev.message;
     const TetMesh rest = model.state.RestMesh();
     const cutting::MeshInvariants inv = cutting::CheckMeshInvariants(rest);
@@ -118,6 +121,12 @@ TEST(CutHandler, KeepConnectedCutsShallowerInsteadOfSplitting) {
   }
 }
 
+// A cut growing across a 40 x 40 x 20 mm block seen from above, one cut point per event
+// (the detector's polyline with a 7 mm look-ahead), while the block moves and bends a little
+// between events: every event applies on the persistent topology, the state stays numbered
+// like it, the rest volume is kept, the growth stays that of one cut (the crack is not cut
+// again), and at the end the block is in two pieces, the sheet inside cut along the line (a
+// transection: keep_connected off). Both configurations.
 TEST(CutHandler, ProgressiveCutOnAMovingModel) {
   for (const char* configuration : {"rest", "current"}) {
     SCOPED_TRACE(configuration);

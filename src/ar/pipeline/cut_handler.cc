@@ -198,6 +198,7 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
         mesh_->SetDeformation(state.rest_positions(), RowMatX3d::Zero(state.num_vertices(), 3));
       else
         mesh_->SetDeformation(state.positions(), state.velocities());
+      const cutting::CuttableMesh start = *mesh_;  // this configuration, before any attempt
       cutting::CutExtrusionOptions ext =
           cutting::CutExtrusionCovering(line, eye_mm, positions, options_.extrusion_margin_mm);
       const double full_depth = ext.extent_away_from_camera_mm;
@@ -213,13 +214,13 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
         if (rest && after.slivers > pieces_before.slivers) {
           // The polyline turned away from an earlier look-ahead, and the two cracks cut off
           // the elements between them; this frame's strip (current configuration) may not.
-          *mesh_ = before;
+          *mesh_ = start;
           cut.status = cutting::CutStatus::kRejected;
           cut.message = "S cuts off a sliver of the model";
           break;
         }
         if (!options_.keep_connected || after.pieces <= pieces_before.pieces) break;
-        *mesh_ = before;
+        *mesh_ = start;
         cut.status = cutting::CutStatus::kRejected;
         cut.message = "S splits the body at every depth tried (cutting.keep_connected)";
       }
