@@ -59,11 +59,15 @@ int RunEval(int argc, char** argv) {
   parser.AddDouble("colormap-max", &o.color_map_max_mm, "MM",
                    "top of the colour-map scale in mm (0: the symmetric Hausdorff distance)");
   parser.AddFlag("no-colormaps", &no_colormaps, "skip the per-vertex distance colour maps");
+  parser.AddFlag("overlap-images", &o.overlap_images,
+                 "write REPORT/overlap/NNNNNN.png per evaluated frame: the true mask against the "
+                 "model's silhouette (grey both, red truth only, blue model only)");
   parser.AddFlag("quiet", &quiet, "no progress on stderr");
   parser.SetEpilog(
       "Writes REPORT/report.json (dice_final, dice_mean, hausdorff_surface, hausdorff_internal,\n"
       "feature_error_mm, frames), REPORT/report.csv (one row per frame and run),\n"
-      "REPORT/report.html (self-contained) and REPORT/colormaps/*.obj|png. See docs/eval.md.");
+      "REPORT/report.html (self-contained), REPORT/colormaps/*.obj|png and, with\n"
+      "--overlap-images, REPORT/overlap/*.png. See docs/eval.md.");
   if (!parser.Parse(argc, argv)) return 0;
   ARREG_CHECK_INPUT(seed >= 0, "", "--seed", "must be >= 0, got ", seed);
   o.hausdorff.sampling.seed = static_cast<uint64_t>(seed);

@@ -82,6 +82,33 @@ TEST(Dice, OverlappingRectanglesGiveTheExactFraction) {
 TEST(Dice, RejectsMasksOfDifferentSizeOrType) {
   EXPECT_THROW(ComputeDice(cv::Mat::zeros(5, 5, CV_8U), cv::Mat::zeros(5, 6, CV_8U)), Error);
   EXPECT_THROW(ComputeDice(cv::Mat::zeros(5, 5, CV_8U), cv::Mat::zeros(5, 5, CV_32F)), Error);
+  EXPECT_THROW(OverlapImage(cv::Mat::zeros(5, 5, CV_8U), cv::Mat::zeros(5, 6, CV_8U)), Error);
+}
+
+// The overlap image colours exactly the pixels the Dice counts: both, truth only, model only.
+TEST(Dice, OverlapImageColoursThePixelsTheDiceCounts) {
+  cv::Mat truth = cv::Mat::zeros(80, 100, CV_8U), model = cv::Mat::zeros(80, 100, CV_8U);
+  truth(cv::Rect(10, 10, 40, 30)).setTo(255);
+  model(cv::Rect(30, 20, 40, 30)).setTo(1);
+  const cv::Mat image = OverlapImage(truth, model);
+  ASSERT_EQ(image.type(), CV_8UC3);
+  ASSERT_EQ(image.size(), truth.size());
+  int both = 0, truth_only = 0, model_only = 0, neither = 0;
+  for (int y = 0; y < image.rows; ++y)
+    for (int x = 0; x < image.cols; ++x) {
+      const cv::Vec3b p = image.at<cv::Vec3b>(y, x);
+      both += p == kOverlapBoth;
+      truth_only += p == kOverlapTruthOnly;
+      model_only += p == kOverlapModelOnly;
+      neither += p == cv::Vec3b(0, 0, 0);
+    }
+  const DiceCounts d = ComputeDice(truth, model);
+  EXPECT_EQ(both, d.intersection);
+  EXPECT_EQ(truth_only, d.area_a - d.intersection);
+  EXPECT_EQ(model_only, d.area_b - d.intersection);
+  EXPECT_EQ(both + truth_only + model_only + neither, 80 * 100);
+  EXPECT_EQ(both, 400);
+  EXPECT_EQ(truth_only, 800);
 }
 
 TEST(Silhouette, SquareFacingTheCameraCoversTheExpectedPixels) {

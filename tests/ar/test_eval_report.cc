@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "ar/eval/color_map.h"
+#include "ar/eval/dice.h"
 #include "ar/eval/evaluation.h"
 #include "core/camera.h"
 #include "core/error.h"
@@ -135,6 +136,39 @@ TEST(EvalReport, WritesJsonCsvHtmlAndColourMaps) {
   EXPECT_EQ(image.rows, 120);
   EXPECT_GT(image.cols, 160);  // view plus legend
   EXPECT_TRUE(fs::exists(f.out / "colormaps" / "baseline_internal_gt_to_model_000002.png"));
+  EXPECT_EQ(report.at("overlap_images").size(), 0u);  // off by default
+  EXPECT_FALSE(fs::exists(f.out / "overlap"));
+}
+
+// With overlap images, one PNG per frame with a Dice for each run, listed in report.json; its
+// grey pixels are the Dice's intersection.
+TEST(EvalReport, WritesOverlapImagesWhenAsked) {
+  const Folders f = MakeFolders("eval_report_overlap");
+  EvalOptions o = FastOptions();
+  o.color_maps = false;
+  o.overlap_images = true;
+  const RunEvaluation run = EvaluateRun(f.run.string(), f.gt.string(), o);
+  const RunEvaluation base = EvaluateRun(f.baseline.string(), f.gt.string(), o);
+  WriteEvalReport(f.out.string(), f.gt.string(), run, &base, o);
+  const nlohmann::json report = ParseJsonFile((f.out / "report.json").string());
+  const size_t frames_with_dice = run.overlap_pngs.size();
+  ASSERT_EQ(frames_with_dice, 3u);
+  EXPECT_EQ(report.at("overlap_images").size(), frames_with_dice + base.overlap_pngs.size());
+  EXPECT_EQ(report.at("overlap_images")[0].get<std::string>(), "overlap/000000.png");
+  EXPECT_TRUE(fs::exists(f.out / "overlap" / "baseline_000002.png"));
+  const cv::Mat image = cv::imread((f.out / "overlap" / "000001.png").string());
+  ASSERT_FALSE(image.empty());
+  EXPECT_EQ(image.cols, run.camera.width);
+  EXPECT_EQ(image.rows, run.camera.height);
+  int both = 0, differ = 0;
+  for (int y = 0; y < image.rows; ++y)
+    for (int x = 0; x < image.cols; ++x) {
+      both += image.at<cv::Vec3b>(y, x) == kOverlapBoth;
+      differ += image.at<cv::Vec3b>(y, x) == kOverlapTruthOnly ||
+                image.at<cv::Vec3b>(y, x) == kOverlapModelOnly;
+    }
+  ASSERT_GT(both + differ, 0);
+  EXPECT_DOUBLE_EQ(2.0 * both / (2.0 * both + differ), 0.75);  // frame 1's Dice
 }
 
 TEST(EvalReport, ErrorsNameTheOffendingFile) {

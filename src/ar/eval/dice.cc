@@ -4,11 +4,38 @@
 
 namespace arreg::eval {
 
-DiceCounts ComputeDice(const cv::Mat& mask_a, const cv::Mat& mask_b) {
+namespace {
+
+void CheckMaskPair(const cv::Mat& mask_a, const cv::Mat& mask_b) {
   ARREG_CHECK_INPUT(mask_a.type() == CV_8UC1 && mask_b.type() == CV_8UC1, "", "mask",
                     "Dice needs single-channel 8-bit masks");
   ARREG_CHECK_INPUT(mask_a.size() == mask_b.size(), "", "mask", "Dice of masks of different size (",
                     mask_a.cols, "x", mask_a.rows, " vs ", mask_b.cols, "x", mask_b.rows, ")");
+}
+
+}  // namespace
+
+cv::Mat OverlapImage(const cv::Mat& truth, const cv::Mat& model) {
+  CheckMaskPair(truth, model);
+  cv::Mat out(truth.size(), CV_8UC3, cv::Scalar(0, 0, 0));
+  for (int y = 0; y < truth.rows; ++y) {
+    const uint8_t* t = truth.ptr<uint8_t>(y);
+    const uint8_t* m = model.ptr<uint8_t>(y);
+    cv::Vec3b* o = out.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < truth.cols; ++x) {
+      if (t[x] && m[x])
+        o[x] = kOverlapBoth;
+      else if (t[x])
+        o[x] = kOverlapTruthOnly;
+      else if (m[x])
+        o[x] = kOverlapModelOnly;
+    }
+  }
+  return out;
+}
+
+DiceCounts ComputeDice(const cv::Mat& mask_a, const cv::Mat& mask_b) {
+  CheckMaskPair(mask_a, mask_b);
   DiceCounts counts;
   for (int y = 0; y < mask_a.rows; ++y) {
     const uint8_t* a = mask_a.ptr<uint8_t>(y);

@@ -23,6 +23,16 @@ struct DiceCounts {
 // is inside when it is non-zero. Throws arreg::Error when the types or sizes differ.
 DiceCounts ComputeDice(const cv::Mat& mask_a, const cv::Mat& mask_b);
 
+// Colours (BGR) of OverlapImage: pixels inside both masks, inside the truth only (the model
+// misses them) and inside the model only; pixels inside neither are black.
+inline const cv::Vec3b kOverlapBoth(160, 160, 160), kOverlapTruthOnly(40, 40, 230),
+    kOverlapModelOnly(230, 120, 30);
+
+// An 8-bit BGR image of the true mask against the model's silhouette (single-channel masks of
+// the same size, non-zero inside): where the registration lags (truth only) and where it
+// overshoots (model only). Throws arreg::Error when the types or sizes differ.
+cv::Mat OverlapImage(const cv::Mat& truth, const cv::Mat& model);
+
 // The camera's intrinsics as a distortion-free raster camera placed at the
 // world origin (identity pose): pair it with PointsForRaster.
 render::RasterCamera RasterCameraFor(const PinholeCamera& camera);

@@ -236,7 +236,14 @@ RunEvaluation EvaluateRun(const std::string& run_dir, const std::string& gt_dir,
     FrameEvaluation& fe = ev.frames[f];
     const SurfaceMesh model = ReadMesh(FramePath(run_dir, "surface", f, ".obj"));
     const cv::Mat truth = ReadMask(FramePath(gt_dir, "masks", f, ".png"), info.camera);
-    fe.dice = ComputeDice(RenderSilhouette(info.camera, model), truth).dice;
+    const cv::Mat silhouette = RenderSilhouette(info.camera, model);
+    fe.dice = ComputeDice(silhouette, truth).dice;
+    if (options.overlap_images) {
+      std::vector<unsigned char> png;
+      ARREG_CHECK_INPUT(cv::imencode(".png", OverlapImage(truth, silhouette), png), run_dir, "",
+                        "PNG encoding of the overlap image failed");
+      ev.overlap_pngs.emplace_back(f, std::move(png));
+    }
     dice_sum += *fe.dice;
     ev.dice_final = *fe.dice;
 

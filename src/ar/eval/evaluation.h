@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "ar/eval/hausdorff.h"
@@ -22,6 +23,9 @@ struct EvalOptions {
   // distance of the structure at the colour-map frame, so both directions share a scale.
   double color_map_max_mm = 0.0;
   int color_map_supersampling = 2;  // anti-aliasing of the colour-map images, 1..8; default 2
+  // Keep, per frame with a Dice, an image of the true mask against the model's silhouette
+  // (OverlapImage) for REPORT/overlap/; default false.
+  bool overlap_images = false;
   // Called after each evaluated frame with (done, total) frames; may be empty (default).
   std::function<void(int done, int total)> progress;
   void Check() const;
@@ -77,6 +81,8 @@ struct RunEvaluation {
 
   std::vector<FrameEvaluation> frames;         // one per processed frame, in order
   std::vector<DistanceField> distance_fields;  // colour maps at the last frame with a GT surface
+  // With EvalOptions::overlap_images: (frame, PNG bytes of OverlapImage) per frame with a Dice.
+  std::vector<std::pair<int, std::vector<unsigned char>>> overlap_pngs;
 };
 
 // Reads everything, checks consistency and computes the metrics. Throws
@@ -91,7 +97,8 @@ RunEvaluation EvaluateRun(const std::string& run_dir, const std::string& gt_dir,
 nlohmann::json EvaluationToJson(const RunEvaluation& evaluation);
 
 // Writes REPORT/report.json, report.csv, report.html and (when enabled) the
-// colour maps under REPORT/colormaps/, all atomically. `baseline` (may be
+// colour maps under REPORT/colormaps/ and the overlap images under REPORT/overlap/
+// (NNNNNN.png, the baseline's baseline_NNNNNN.png), all atomically. `baseline` (may be
 // null) is a second run of the same ground truth, shown beside the first.
 void WriteEvalReport(const std::string& out_dir, const std::string& gt_dir,
                      const RunEvaluation& run, const RunEvaluation* baseline,

@@ -296,6 +296,19 @@ void WriteEvalReport(const std::string& out_dir, const std::string& gt_dir,
     maps.push_back(image.png_path.substr(0, image.png_path.size() - 4) + ".obj");
   }
   report["colormaps"] = maps;
+  nlohmann::json overlaps = nlohmann::json::array();
+  if (!run.overlap_pngs.empty() || (baseline && !baseline->overlap_pngs.empty()))
+    CreateDirectories((fs::path(out_dir) / "overlap").string());
+  for (const RunEvaluation* r : {&run, baseline}) {
+    if (!r) continue;
+    for (const auto& [frame, png] : r->overlap_pngs) {
+      char name[40];
+      std::snprintf(name, sizeof(name), "overlap/%s%06d.png", r == &run ? "" : "baseline_", frame);
+      WriteBytesAtomic((fs::path(out_dir) / name).string(), png);
+      overlaps.push_back(name);
+    }
+  }
+  report["overlap_images"] = overlaps;
   if (baseline) report["baseline"] = EvaluationToJson(*baseline);
   const std::string json_text = report.dump(2) + "\n";
   WriteFileAtomic((fs::path(out_dir) / "report.json").string(),
