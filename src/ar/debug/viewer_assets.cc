@@ -294,7 +294,9 @@ const char kViewerJs[] = R"JS('use strict';
     } else {
       rows.push(['cut detection', 'off']);
     }
-    rec.cut_events.forEach((e) => rows.push(['cut event', e.status + (e.message ? ': ' + e.message : '')]));
+    rec.cut_events.forEach((e) => rows.push(['cut event', e.status +
+      (e.status === 'cut' ? ' (' + e.configuration + ', depth ' + e.depth_fraction + ', +' + e.new_vertices + ' V)' : '') +
+      (e.message ? ': ' + e.message : '')]));
     if (rec.model) rows.push(['model V / T', rec.model.vertices + ' / ' + rec.model.tetrahedra]);
     for (const k of Object.keys(rec.ms)) rows.push([k + ' [ms]', rec.ms[k]]);
     const table = $('numbers');
