@@ -160,8 +160,7 @@ void CutDetector::Initialize(const RowMatX3d& initial_positions_mm, const std::v
         }
   }
   ever_paired_.reserve(2 * pairs_.size());
-  for (const FeaturePair& p : pairs_)
-    ever_paired_.insert(static_cast<long long>(p.first) * n + p.second);
+  for (const FeaturePair& p : pairs_) ever_paired_.insert(PairKey(p.first, p.second));
   std::sort(pairs_.begin(), pairs_.end(), PairLess);
 }
 
@@ -203,7 +202,6 @@ const std::vector<int>& CutDetector::BridgeCandidates(int l) {
 }
 
 int CutDetector::BridgeFeature(int l, int dead) {
-  const int n = num_features();
   const Eigen::Vector3d pl = initial_mm_.row(l).transpose();
   const Eigen::Vector3d towards = initial_mm_.row(dead).transpose() - pl;
   const double towards_norm = towards.norm();
@@ -214,8 +212,7 @@ int CutDetector::BridgeFeature(int l, int dead) {
     if (!alive_[m]) continue;
     const Eigen::Vector3d v = initial_mm_.row(m).transpose() - pl;
     if (v.dot(towards) < cos_cone * v.norm() * towards_norm) continue;
-    const long long pair_key = static_cast<long long>(std::min(l, m)) * n + std::max(l, m);
-    if (ever_paired_.count(pair_key)) continue;
+    if (ever_paired_.count(PairKey(l, m))) continue;
     bool crosses_cut = false;
     for (const CutPoint& q : polyline_)
       crosses_cut = crosses_cut || SquaredDistanceToSegment(pl, initial_mm_.row(m).transpose(),
@@ -285,7 +282,7 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
       const int m = BridgeFeature(l, dead);
       if (m < 0) continue;
       const FeaturePair bridge{std::min(l, m), std::max(l, m), true};
-      ever_paired_.insert(static_cast<long long>(bridge.first) * n + bridge.second);
+      ever_paired_.insert(PairKey(l, m));
       pairs_.push_back(bridge);
       ++result->pairs_bridged;
     }

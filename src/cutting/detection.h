@@ -3,6 +3,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <optional>
 #include <unordered_map>
 #include <unordered_set>
@@ -282,8 +283,12 @@ class CutDetector {
   Eigen::RowVector3d grid_origin_mm_ = Eigen::RowVector3d::Zero();
   std::unordered_multimap<long long, int> grid_;         // frame-0 positions by cell (size r_F)
   std::vector<Eigen::Matrix<long long, 3, 1>> cell_of_;  // per feature, its cell key
-  std::unordered_set<long long> ever_paired_;            // l * #F + m of every pair C^t has held
-  std::vector<std::vector<int>> bridge_candidates_;      // per feature, see BridgeCandidates
+  std::unordered_set<long long> ever_paired_;            // PairKey of every pair C^t has held
+  // Key of the pair {a, b} in ever_paired_: min * #F + max.
+  long long PairKey(int a, int b) const {
+    return static_cast<long long>(std::min(a, b)) * num_features() + std::max(a, b);
+  }
+  std::vector<std::vector<int>> bridge_candidates_;  // per feature, see BridgeCandidates
   std::vector<char> bridge_candidates_known_;
   std::vector<CutPoint> polyline_;  // front() and back() are the extremities
   bool front_at_border_ = false;

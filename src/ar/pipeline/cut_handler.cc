@@ -188,16 +188,14 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
     if (options_.cut_configuration == "rest") configurations = {true, false};
     for (bool rest : configurations) {
       in_rest = rest;
-      const double edge_mm = mesh_->mean_rest_edge_length();
       const std::vector<Eigen::Vector3d> line =
           rest ? CarryEndsAcrossTheOutline(rest_polyline_mm, eye_mm,
-                                           ExtractBoundary(state.RestMesh()), edge_mm)
+                                           ExtractBoundary(state.RestMesh()),
+                                           mesh_->mean_rest_edge_length())
                : polyline_mm;
       const RowMatX3d& positions = rest ? state.rest_positions() : state.positions();
-      if (rest)
-        mesh_->SetDeformation(state.rest_positions(), RowMatX3d::Zero(state.num_vertices(), 3));
-      else
-        mesh_->SetDeformation(state.positions(), state.velocities());
+      mesh_->SetDeformation(positions,
+                            rest ? RowMatX3d::Zero(state.num_vertices(), 3) : state.velocities());
       const cutting::CuttableMesh start = *mesh_;  // this configuration, before any attempt
       cutting::CutExtrusionOptions ext =
           cutting::CutExtrusionCovering(line, eye_mm, positions, options_.extrusion_margin_mm);
