@@ -6,6 +6,7 @@
 
 #include <cmath>
 
+#include "ar/synth/shapes.h"
 #include "core/mesh_generators.h"
 #include "core/mesh_ops.h"
 #include "cutting/mesh_checks.h"
@@ -23,12 +24,13 @@ struct Model {
   std::vector<RowMatX3d> internal_rest;
   std::vector<mechanics::EmbeddedPoints> internal_embedding;
 
-  explicit Model(const TetMesh& mesh) : state(mesh, mechanics::Material()) {
-    // Features on a grid on the top face (z = 20), one spring each.
+  // top_mm: z of the model's top face (features 0.5 mm below it, the sheet 10 mm below).
+  explicit Model(const TetMesh& mesh, double top_mm = 20.0) : state(mesh, mechanics::Material()) {
+    // Features on a grid under the top face, one spring each.
     for (double x = 2; x < 40; x += 4)
       for (double y = 2; y < 40; y += 4) {
         features_rest.conservativeResize(features_rest.rows() + 1, 3);
-        features_rest.row(features_rest.rows() - 1) << x, y, 19.5;
+        features_rest.row(features_rest.rows() - 1) << x, y, top_mm - 0.5;
       }
     feature_embedding =
         mechanics::EmbeddedPoints::Embed(features_rest, state.rest_positions(), state.tetrahedra());
@@ -45,7 +47,8 @@ struct Model {
     const int n = 9;
     sheet.vertices.resize(n * n, 3);
     for (int i = 0; i < n; ++i)
-      for (int j = 0; j < n; ++j) sheet.vertices.row(i * n + j) << 4 + 4 * i, 4 + 4 * j, 10.1;
+      for (int j = 0; j < n; ++j)
+        sheet.vertices.row(i * n + j) << 4 + 4 * i, 4 + 4 * j, std::max(top_mm - 9.9, 0.5 * top_mm);
     sheet.faces.resize(2 * (n - 1) * (n - 1), 3);
     int f = 0;
     for (int i = 0; i + 1 < n; ++i)
@@ -273,6 +276,77 @@ TEST(CutHandler, CrackEndsNearTheOutlineAreCarriedAcrossIt) {
   }
   EXPECT_EQ(pieces[0], 2);
   EXPECT_EQ(pieces[1], 1);  // the current configuration does not carry the end
+}
+
+// Two events on the coarse synthetic band (10 x 10 x 8 mm cells of 5 elements, oblique rays as
+// in band-cut-v): the first crack's border extension runs 18.5 mm on, the second turns 22
+// degrees away from it at the same point. The elements between the two cracks near the turn
+// are cut off as debris (a few mm^3), which once refused the rest configuration (the event
+// fell back to the current one and its junction stayed sewn). The debris is now welded: the
+// event is cut in the rest configuration, every vertex of a piece below 0.5 % of the volume
+// is fixed and follows an element of the band, so an affine motion of the band moves it
+// exactly as the same motion would.
+TEST(CutHandler, DebrisBetweenTwoCracksIsWeldedToTheBody) {
+  synth::BoxUnionMeshOptions coarse;
+  coarse.cell_mm = Eigen::Vector3d(10, 10, 8);
+  coarse.tets_per_cell = 5;
+  const TetMesh band =
+      synth::MeshBoxUnion(
+          {Eigen::AlignedBox3d(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(100, 100, 8)),
+           Eigen::AlignedBox3d(Eigen::Vector3d(30, -20, 0), Eigen::Vector3d(70, 0, 8))},
+          coarse)
+          .mesh;
+  const double v0 = cutting::CheckMeshInvariants(band).total_volume;
+  const Eigen::Vector3d eye(80, 5, 230);
+  Model model(band, 8.0);
+  CutHandler handler(CuttingStageOptions(), model.state);
+  const std::vector<Eigen::Vector3d> first = {
+      {44.6, 114.6, 8}, {48.1, 95.4, 8}, {51.5, 77.5, 8}, {55.0, 59.3, 8}};
+  const CutEvent e1 = handler.Apply(0, first, first, eye, model.Targets());
+  ASSERT_EQ(e1.status, "cut") << e1.message;
+  EXPECT_EQ(e1.welded_vertices, 0);
+  const std::vector<Eigen::Vector3d> second = {
+      {44.6, 114.6, 8}, {48.1, 95.4, 8}, {51.5, 77.5, 8}, {48.3, 61.0, 8}, {46.5, 52.1, 8}};
+  const CutEvent e2 = handler.Apply(1, second, second, eye, model.Targets());
+  ASSERT_EQ(e2.status, "cut") << e2.message;
+  EXPECT_EQ(e2.configuration, "rest");
+  EXPECT_GT(e2.welded_vertices, 0);
+  EXPECT_EQ(handler.num_welded_vertices(), e2.welded_vertices);
+  const cutting::MeshInvariants inv = cutting::CheckMeshInvariants(model.state.RestMesh());
+  ASSERT_TRUE(inv.ok()) << inv.ToString();
+  EXPECT_NEAR(inv.total_volume, v0, 1e-9 * v0);
+
+  // Every vertex of a piece below 0.5 % of the volume is welded (fixed), and no other.
+  const TetMesh rest = model.state.RestMesh();
+  int count = 0;
+  const Eigen::VectorXi piece = ConnectedComponents(rest, Adjacency::kVertex, &count);
+  const Eigen::VectorXd volumes = TetVolumes(rest);
+  std::vector<double> volume(count, 0.0);
+  for (int t = 0; t < rest.num_tetrahedra(); ++t) volume[piece(t)] += volumes(t);
+  std::vector<char> in_debris(model.state.num_vertices(), 0);
+  for (int t = 0; t < rest.num_tetrahedra(); ++t)
+    for (int a = 0; a < 4; ++a) in_debris[rest.tetrahedra(t, a)] |= volume[piece(t)] < 0.005 * v0;
+  int debris_vertices = 0;
+  for (int v = 0; v < model.state.num_vertices(); ++v) {
+    debris_vertices += in_debris[v];
+    EXPECT_EQ(model.state.is_fixed(v), in_debris[v] != 0) << "vertex " << v;
+  }
+  EXPECT_EQ(debris_vertices, e2.welded_vertices);
+
+  // An affine motion of the body: the welded vertices follow it exactly.
+  Eigen::Matrix3d a;
+  a << 1.2, -0.3, 0.1, 0.25, 0.9, 0.0, 0.05, 0.1, 1.1;
+  const Eigen::Vector3d shift(3, -7, 11);
+  RowMatX3d& x = model.state.mutable_positions();
+  for (int v = 0; v < model.state.num_vertices(); ++v)
+    x.row(v) = in_debris[v] ? Eigen::RowVector3d(1e3, 1e3, 1e3)
+                            : (a * model.state.rest_position(v) + shift).transpose();
+  handler.FollowWelds(&model.state);
+  for (int v = 0; v < model.state.num_vertices(); ++v) {
+    if (!in_debris[v]) continue;
+    EXPECT_LT((model.state.position(v) - (a * model.state.rest_position(v) + shift)).norm(), 1e-9)
+        << "vertex " << v;
+  }
 }
 
 }  // namespace

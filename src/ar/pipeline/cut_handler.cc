@@ -1,5 +1,7 @@
 #include "ar/pipeline/cut_handler.h"
 
+#include <limits>
+
 #include "ar/lift/lifting.h"
 #include "core/error.h"
 #include "core/log.h"
@@ -66,21 +68,41 @@ constexpr double kDepthFractions[] = {1.0, 0.75, 0.5, 0.25};
 
 // A piece of the model holding less than this fraction of its rest volume is a sliver.
 constexpr double kSliverFraction = 0.05;
+// A piece below this fraction of the rest volume is debris: a few elements' fragments that two
+// nearly coincident cracks cut off (an event's crack turns away from the previous event's
+// look-ahead by a few degrees, and the elements between are cut twice). Debris is welded to
+// the nearest piece (CutHandler::FollowWelds) rather than simulated or refused.
+constexpr double kDebrisFraction = 0.005;
 
-struct PieceCount {
-  int pieces = 0;   // elements connected through shared vertices
-  int slivers = 0;  // of them, those below kSliverFraction of the volume
+struct Pieces {
+  Eigen::VectorXi piece;       // per element, its piece (elements connected through vertices)
+  std::vector<double> volume;  // per piece, its rest volume
+  double total = 0.0;
+  bool debris(int p) const { return volume[p] < kDebrisFraction * total; }
+  // Pieces that are not debris.
+  int Count() const {
+    int n = 0;
+    for (int p = 0; p < static_cast<int>(volume.size()); ++p) n += !debris(p);
+    return n;
+  }
+  // Pieces from the debris bound to kSliverFraction of the volume.
+  int Slivers() const {
+    int n = 0;
+    for (int p = 0; p < static_cast<int>(volume.size()); ++p)
+      n += !debris(p) && volume[p] < kSliverFraction * total;
+    return n;
+  }
 };
 
-PieceCount Pieces(const cutting::CuttableMesh& mesh) {
-  PieceCount count;
-  const TetMesh rest = mesh.RestMesh();
-  const Eigen::VectorXi piece = ConnectedComponents(rest, Adjacency::kVertex, &count.pieces);
+Pieces FindPieces(const TetMesh& rest) {
+  Pieces pieces;
+  int count = 0;
+  pieces.piece = ConnectedComponents(rest, Adjacency::kVertex, &count);
   const Eigen::VectorXd volumes = TetVolumes(rest);
-  std::vector<double> volume(count.pieces, 0.0);
-  for (int t = 0; t < rest.num_tetrahedra(); ++t) volume[piece(t)] += volumes(t);
-  for (double v : volume) count.slivers += v < kSliverFraction * volumes.sum();
-  return count;
+  pieces.volume.assign(count, 0.0);
+  for (int t = 0; t < rest.num_tetrahedra(); ++t) pieces.volume[pieces.piece(t)] += volumes(t);
+  pieces.total = volumes.sum();
+  return pieces;
 }
 
 // An end of the crack this close to the model's outline, in mean rest edge lengths, is
@@ -166,7 +188,7 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
                       " vertices and ", state.num_tetrahedra(), " elements, the cut topology ",
                       mesh_->num_vertices(), " and ", mesh_->num_tetrahedra());
     const cutting::CuttableMesh before = *mesh_;
-    const PieceCount pieces_before = Pieces(before);
+    const Pieces pieces_before = FindPieces(before.RestMesh());
     // In the rest configuration (the frame-0 polyline along the frame-0 rays) S of the applied
     // segments is the same surface as before and lies on the crack, so the whole polyline is
     // cut and the new part continues the crack where the last event left it. In the current
@@ -208,8 +230,8 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
                           "every segment of the polyline was applied before");
         cut = CutWithRetry(s, &change);
         if (cut.status != cutting::CutStatus::kCut) break;
-        const PieceCount after = Pieces(*mesh_);
-        if (rest && after.slivers > pieces_before.slivers) {
+        const Pieces after = FindPieces(mesh_->RestMesh());
+        if (rest && after.Slivers() > pieces_before.Slivers()) {
           // The polyline turned away from an earlier look-ahead, and the two cracks cut off
           // the elements between them; this frame's strip (current configuration) may not.
           *mesh_ = start;
@@ -217,7 +239,7 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
           cut.message = "S cuts off a sliver of the model";
           break;
         }
-        if (!options_.keep_connected || after.pieces <= pieces_before.pieces) break;
+        if (!options_.keep_connected || after.Count() <= pieces_before.Count()) break;
         *mesh_ = start;
         cut.status = cutting::CutStatus::kRejected;
         cut.message = "S splits the body at every depth tried (cutting.keep_connected)";
@@ -266,6 +288,7 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
         ++ev.springs_removed;
       }
       applied_points_.insert(applied_points_.end(), polyline_mm.begin(), polyline_mm.end());
+      ev.welded_vertices = WeldDebris(&state);
       ev.new_vertices = state.num_vertices() - v_before;
       ev.new_tetrahedra = state.num_tetrahedra() - t_before;
     } else {
@@ -283,6 +306,77 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
     ARREG_LOG_WARNING("run: frame ", frame, ": cut not applied: ", e.what());
   }
   return ev;
+}
+
+int CutHandler::WeldDebris(mechanics::MechanicalState* state) {
+  const TetMesh rest = state->RestMesh();
+  const Pieces pieces = FindPieces(rest);
+  // The elements before this event may have been replaced: every weld is made again.
+  const size_t welded_before = welds_.size();
+  welds_.clear();
+  const int num_pieces = static_cast<int>(pieces.volume.size());
+  std::vector<std::vector<int>> elements(num_pieces);
+  for (int t = 0; t < rest.num_tetrahedra(); ++t) elements[pieces.piece(t)].push_back(t);
+  const auto centroid = [&](int t) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (int a = 0; a < 4; ++a) c += rest.vertices.row(rest.tetrahedra(t, a)).transpose();
+    return Eigen::Vector3d(c / 4.0);
+  };
+  std::vector<char> is_welded(state->num_vertices(), 0);
+  for (int p = 0; p < num_pieces; ++p) {
+    if (!pieces.debris(p)) continue;
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (int t : elements[p]) centre += centroid(t);
+    centre /= static_cast<double>(elements[p].size());
+    // The fragment follows one element (so it moves affinely and cannot invert): the element of
+    // another piece, not debris, whose rest centroid is nearest to the fragment's.
+    int parent = -1;
+    double best = std::numeric_limits<double>::infinity();
+    for (int t = 0; t < rest.num_tetrahedra(); ++t) {
+      if (pieces.debris(pieces.piece(t))) continue;
+      const double d2 = (centroid(t) - centre).squaredNorm();
+      if (d2 < best) {
+        best = d2;
+        parent = t;
+      }
+    }
+    if (parent < 0) continue;  // the whole model is debris: leave it to the solver
+    Eigen::Matrix4d corners;
+    for (int a = 0; a < 4; ++a) {
+      corners.col(a).head<3>() = rest.vertices.row(rest.tetrahedra(parent, a)).transpose();
+      corners(3, a) = 1.0;
+    }
+    const Eigen::Matrix4d inverse = corners.inverse();
+    for (int t : elements[p])
+      for (int a = 0; a < 4; ++a) {
+        const int v = rest.tetrahedra(t, a);
+        if (is_welded[v]) continue;
+        is_welded[v] = 1;
+        Eigen::Vector4d x;
+        x << rest.vertices.row(v).transpose(), 1.0;
+        welds_.push_back({v, parent, inverse * x});
+      }
+  }
+  std::vector<int> vertices;
+  for (const Weld& w : welds_) vertices.push_back(w.vertex);
+  state->SetFixed(vertices);
+  FollowWelds(state);
+  return static_cast<int>(welds_.size()) - static_cast<int>(welded_before);
+}
+
+void CutHandler::FollowWelds(mechanics::MechanicalState* state) const {
+  RowMatX3d& x = state->mutable_positions();
+  RowMatX3d& v = state->mutable_velocities();
+  for (const Weld& w : welds_) {
+    Eigen::RowVector3d position = Eigen::RowVector3d::Zero(), velocity = position;
+    for (int a = 0; a < 4; ++a) {
+      const int corner = state->tetrahedra()(w.element, a);
+      position += w.weights(a) * x.row(corner);
+      velocity += w.weights(a) * v.row(corner);
+    }
+    x.row(w.vertex) = position;
+    v.row(w.vertex) = velocity;
+  }
 }
 
 }  // namespace arreg::pipeline

@@ -57,6 +57,13 @@ class CutHandler {
   // The persistent topology (rest/current positions as of the last event).
   const cutting::CuttableMesh& mesh() const { return *mesh_; }
 
+  // Debris (pieces below 0.5 % of the rest volume, cut off between two nearly coincident
+  // cracks) is welded: its vertices are fixed in the state and follow one element of the
+  // nearest piece affinely (rest barycentric coordinates). Call after every mechanics step;
+  // Apply calls it after an event.
+  void FollowWelds(mechanics::MechanicalState* state) const;
+  int num_welded_vertices() const { return static_cast<int>(welds_.size()); }
+
  private:
   bool Applied(const Eigen::Vector3d& p) const;
   // Cuts mesh_ with S; a rejection is retried with the exact on-surface test.
@@ -64,6 +71,16 @@ class CutHandler {
   // The strips of the polyline's segments that have a point not applied before.
   SurfaceMesh NewPart(const std::vector<Eigen::Vector3d>& polyline_mm,
                       const Eigen::Vector3d& eye_mm, const cutting::CutExtrusionOptions& ext) const;
+
+  // Welds every debris piece of the state (see FollowWelds); returns how many vertices were
+  // welded by this call beyond those welded before.
+  int WeldDebris(mechanics::MechanicalState* state);
+  struct Weld {
+    int vertex = -1;
+    int element = -1;         // the element it follows
+    Eigen::Vector4d weights;  // its barycentric coordinates there (rest)
+  };
+  std::vector<Weld> welds_;
 
   CuttingStageOptions options_;
   std::unique_ptr<cutting::CuttableMesh> mesh_;

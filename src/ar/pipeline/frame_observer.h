@@ -58,6 +58,9 @@ struct CutEvent {
   // Configuration S was built and cut in: "rest" or "current" (CuttingStageOptions::
   // cut_configuration; "current" also when the rest one could not apply); "" if none.
   std::string configuration;
+  // Vertices of debris (pieces below 0.5 % of the rest volume) welded to the nearest piece by
+  // this event (CutHandler::FollowWelds).
+  int welded_vertices = 0;
   nlohmann::json ToJson() const;
 };
 

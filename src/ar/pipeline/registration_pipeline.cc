@@ -55,7 +55,8 @@ nlohmann::json CutEvent::ToJson() const {
           {"springs_removed", springs_removed},
           {"internal_triangles_removed", internal_triangles_removed},
           {"depth_fraction", depth_fraction},
-          {"configuration", configuration}};
+          {"configuration", configuration},
+          {"welded_vertices", welded_vertices}};
 }
 
 namespace {
@@ -384,6 +385,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
         springs.SetTarget(v.spring, targets.row(r).transpose());
       }
       const mechanics::StepSummary step = integrator.Step(&state, &elastic, terms);
+      if (cut_handler) cut_handler->FollowWelds(&state);
       stats.mechanics_status = mechanics::StepStatusName(step.status);
       stats.inverted_elements = step.inverted_elements;
       stats.linear_iterations = step.linear_iterations;
