@@ -1,5 +1,6 @@
 #include "cutting/detection.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -85,6 +86,13 @@ void CutDetectorOptions::Check() const {
   check_cone(bridge_cone_half_angle_deg, "cut_detector.bridge_cone_half_angle_deg");
   ARREG_CHECK_INPUT(max_cut_points_per_frame >= 1, "", "cut_detector.max_cut_points_per_frame",
                     "must be >= 1, got ", max_cut_points_per_frame);
+  ARREG_CHECK_INPUT(std::isfinite(probe_length_factor) && probe_length_factor >= 0.0, "",
+                    "cut_detector.probe_length_factor", "must be >= 0 (0: no probe), got ",
+                    probe_length_factor);
+  ARREG_CHECK_INPUT(positive(probe_pair_length_factor), "", "cut_detector.probe_pair_length_factor",
+                    "must be > 0, got ", probe_pair_length_factor);
+  ARREG_CHECK_INPUT(positive(probe_outlier_factor), "", "cut_detector.probe_outlier_factor",
+                    "must be > 0, got ", probe_outlier_factor);
 }
 
 CutDetector::CutDetector(const CutDetectorOptions& options) : given_(options), options_(options) {
@@ -119,6 +127,7 @@ void CutDetector::Initialize(const RowMatX3d& initial_positions_mm, const std::v
   }
   alive_.assign(n, 1);
   polyline_.clear();
+  for (Probe& probe : probes_) probe = Probe();
   front_at_border_ = back_at_border_ = false;
   frame_ = 0;
   row_of_feature_.assign(n, -1);
@@ -263,6 +272,8 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   result->segment_added = false;
   result->look_ahead_mm.reset();
   result->pairs_bridged = 0;
+  result->probe_pairs = 0;
+  result->probe_outliers = 0;
   if (any_died) {
     // (alive feature, dead neighbour) of the pairs that die, for their bridges.
     std::vector<std::pair<int, int>> lost;
@@ -295,22 +306,12 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   const int num_pairs = static_cast<int>(pairs_.size());
   result->pairs.assign(pairs_.begin(), pairs_.end());
   result->measure.resize(num_pairs);
-  const RowMatX3d& ratio_positions =
-      options_.measure == CutMeasure::kModelRegularised ? model_mm_ : target_mm_;
   // mu-bar is taken over the pairs of C_F (bridges are up to 2 r_F long and would shift the
   // threshold the thesis's tau refers to); over the bridges if no pair of C_F is left.
   double sum = 0.0, bridge_sum = 0.0;
   int bridges = 0;
   for (int k = 0; k < num_pairs; ++k) {
-    const int l = pairs_[k].first, m = pairs_[k].second;
-    const Eigen::Vector3d dl = model_mm_.row(l) - target_mm_.row(l);
-    const Eigen::Vector3d dm = model_mm_.row(m) - target_mm_.row(m);
-    const double mu1 = (dl - dm).norm();
-    const double delta0 = (initial_mm_.row(l) - initial_mm_.row(m)).norm();
-    const double delta = (ratio_positions.row(l) - ratio_positions.row(m)).norm();
-    // Coincident initial features carry no length information; treat them as unstretched.
-    const double mu2 = delta0 > 0.0 ? delta / delta0 : 1.0;
-    const double mu = mu1 * mu2;
+    const double mu = Measure(pairs_[k].first, pairs_[k].second);
     result->measure[k] = mu;
     if (pairs_[k].bridge) {
       bridge_sum += mu;
@@ -400,25 +401,7 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
       }
     }
     if (placement == Placement::kRefuse) break;
-    const bool front = InsertCutPoint(point, placement);
-    result->new_cut_points.push_back(point);
-    if (polyline_.size() >= 2) {
-      result->segment_added = true;
-      const CutPoint& end = front ? polyline_[0] : polyline_.back();
-      const CutPoint& prev = front ? polyline_[1] : polyline_[polyline_.size() - 2];
-      const Eigen::Vector3d dir = end.position_mm - prev.position_mm;
-      if (options_.look_ahead && dir.norm() > 0.0)
-        result->look_ahead_mm = end.position_mm + options_.cut_point_radius_mm * dir.normalized();
-      if (polyline_.size() == 2) {
-        front_at_border_ = ExtremityAtBorder(true);
-        back_at_border_ = ExtremityAtBorder(false);
-      } else if (front) {
-        front_at_border_ = ExtremityAtBorder(true);
-      } else {
-        back_at_border_ = ExtremityAtBorder(false);
-      }
-    }
-    RemovePairsNear(point.position_mm, &result->pairs_removed_by_cut);
+    CommitCutPoint(point, placement, result);
     // The outliers that made the point are explained by it: without their removal, a cluster
     // whose pairs pass outside the r_pc sphere would insert the same point again next frame.
     if (options_.cluster_outliers) {
@@ -445,10 +428,273 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
         candidates_.end());
   }
 
+  // The growth probe, when C^t inserted nothing: the back extremity first, then the front.
+  if (result->new_cut_points.empty() && options_.probe_length_factor > 0.0 &&
+      polyline_.size() >= 2) {
+    for (const bool front : {false, true}) {
+      CutPoint point;
+      if (!ProbeGrowth(front, result, &point)) continue;
+      CommitCutPoint(point, front ? Placement::kFront : Placement::kBack, result);
+      break;
+    }
+  }
+
   result->polyline_mm.clear();
   for (const CutPoint& p : polyline_) result->polyline_mm.push_back(p.position_mm);
   result->extended_polyline_mm = ExtendedPolyline(false);
   ++frame_;
+}
+
+double CutDetector::Measure(int l, int m) const {
+  const RowMatX3d& ratio_positions =
+      options_.measure == CutMeasure::kModelRegularised ? model_mm_ : target_mm_;
+  const Eigen::Vector3d dl = model_mm_.row(l) - target_mm_.row(l);
+  const Eigen::Vector3d dm = model_mm_.row(m) - target_mm_.row(m);
+  const double mu1 = (dl - dm).norm();
+  const double delta0 = (initial_mm_.row(l) - initial_mm_.row(m)).norm();
+  const double delta = (ratio_positions.row(l) - ratio_positions.row(m)).norm();
+  // Coincident initial features carry no length information; treat them as unstretched.
+  const double mu2 = delta0 > 0.0 ? delta / delta0 : 1.0;
+  return mu1 * mu2;
+}
+
+bool CutDetector::CommitCutPoint(const CutPoint& point, Placement placement,
+                                 DetectionResult* result) {
+  const bool front = InsertCutPoint(point, placement);
+  result->new_cut_points.push_back(point);
+  if (polyline_.size() >= 2) {
+    result->segment_added = true;
+    const CutPoint& end = front ? polyline_[0] : polyline_.back();
+    const CutPoint& prev = front ? polyline_[1] : polyline_[polyline_.size() - 2];
+    const Eigen::Vector3d dir = end.position_mm - prev.position_mm;
+    if (options_.look_ahead && dir.norm() > 0.0)
+      result->look_ahead_mm = end.position_mm + options_.cut_point_radius_mm * dir.normalized();
+    if (polyline_.size() == 2) {
+      front_at_border_ = ExtremityAtBorder(true);
+      back_at_border_ = ExtremityAtBorder(false);
+    } else if (front) {
+      front_at_border_ = ExtremityAtBorder(true);
+    } else {
+      back_at_border_ = ExtremityAtBorder(false);
+    }
+  }
+  RemovePairsNear(point.position_mm, &result->pairs_removed_by_cut);
+  return front;
+}
+
+void CutDetector::BuildProbe(bool front) {
+  Probe& probe = probes_[front ? 1 : 0];
+  const size_t last = polyline_.size() - 1;
+  const Eigen::Vector3d end = polyline_[front ? 0 : last].initial_position_mm;
+  const Eigen::Vector3d prev = polyline_[front ? 1 : last - 1].initial_position_mm;
+  const bool at_border = front ? front_at_border_ : back_at_border_;
+  if (end == probe.end && prev == probe.prev && at_border == probe.at_border) return;
+  probe.end = end;
+  probe.prev = prev;
+  probe.at_border = at_border;
+  probe.pairs.clear();
+  const double r_f = options_.neighbour_radius_mm;
+  const double r_pc = options_.cut_point_radius_mm;
+  Eigen::Vector3d dir = end - prev;
+  if (dir.norm() == 0.0) return;
+  dir.normalize();
+  // From the end of the extension (ExtendedPolyline): S reaches that far already. An extremity
+  // found at the border is probed too: the border test sees the alive features only, and
+  // beyond a real border no pair crosses the probe.
+  double extension = options_.look_ahead ? r_pc : 0.0;
+  if (options_.extend_to_boundary && at_border)
+    extension = std::max(extension, options_.boundary_extension_mm);
+  const Eigen::Vector3d origin = end + extension * dir;
+  const double length = options_.probe_length_factor * r_f;
+  const Eigen::Vector3d tip = origin + length * dir;
+
+  // Local surface normal: the least principal direction of the frame-0 features (alive or not)
+  // within r_F of the probe's origin, or of 2 r_F when fewer than 3 are that close.
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  for (const double radius : {r_f, 2.0 * r_f}) {
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
+    int count = 0;
+    for (int f = 0; f < num_features(); ++f) {
+      const Eigen::Vector3d p = initial_mm_.row(f).transpose() - origin;
+      if (p.squaredNorm() >= radius * radius) continue;
+      mean += p;
+      second += p * p.transpose();
+      ++count;
+    }
+    if (count < 3) continue;
+    mean /= count;
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(second / count -
+                                                               mean * mean.transpose());
+    normal = eigen.eigenvectors().col(0);
+    break;
+  }
+  normal -= normal.dot(dir) * dir;
+  if (normal.norm() < 1e-6) return;
+  normal.normalize();
+  const Eigen::Vector3d across = dir.cross(normal);
+
+  // Frame-0 coordinates (along, across, normal) relative to the origin; the polyline's in the
+  // probe's plane.
+  const auto frame = [&](const Eigen::Vector3d& p) {
+    const Eigen::Vector3d r = p - origin;
+    return Eigen::Vector3d(r.dot(dir), r.dot(across), r.dot(normal));
+  };
+  const auto cross2 = [](double ax, double ay, double bx, double by) { return ax * by - ay * bx; };
+  // The open segments ab and cd (plane coordinates, x = along, y = across) cross.
+  const auto segments_cross = [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                  const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
+    const double ab_c = cross2(b.x() - a.x(), b.y() - a.y(), c.x() - a.x(), c.y() - a.y());
+    const double ab_d = cross2(b.x() - a.x(), b.y() - a.y(), d.x() - a.x(), d.y() - a.y());
+    const double cd_a = cross2(d.x() - c.x(), d.y() - c.y(), a.x() - c.x(), a.y() - c.y());
+    const double cd_b = cross2(d.x() - c.x(), d.y() - c.y(), b.x() - c.x(), b.y() - c.y());
+    return ab_c * ab_d < 0.0 && cd_a * cd_b < 0.0;
+  };
+  // The polyline's points and segments that a probe pair can reach: a pair lies within its
+  // length of its crossing, on the probe. A segment is kept by its midpoint (any of its points
+  // is within half its length of it).
+  const double pair_length = options_.probe_pair_length_factor * r_f;
+  const double pair_length2 = pair_length * pair_length;
+  const Eigen::Vector3d probe_start = Eigen::Vector3d::Zero(), probe_end(length, 0.0, 0.0);
+  const auto reachable = [&](const Eigen::Vector3d& p, double slack) {
+    const double reach = pair_length + r_pc + slack;
+    return SquaredDistanceToSegment(probe_start, probe_end, p) <= reach * reach;
+  };
+  std::vector<Eigen::Vector3d> cut_points;
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> cut_segments;
+  for (size_t k = 0; k < polyline_.size(); ++k) {
+    const Eigen::Vector3d a = frame(polyline_[k].initial_position_mm);
+    if (reachable(a, 0.0)) cut_points.push_back(a);
+    if (k + 1 == polyline_.size()) continue;
+    const Eigen::Vector3d b = frame(polyline_[k + 1].initial_position_mm);
+    if (reachable(0.5 * (a + b), 0.5 * (b - a).norm())) cut_segments.emplace_back(a, b);
+  }
+
+  // Alive features within the longest pair of the probe, split by side.
+  std::vector<int> sides[2];
+  std::vector<Eigen::Vector3d> local(num_features());
+  for (int f = 0; f < num_features(); ++f) {
+    if (!alive_[f]) continue;
+    const Eigen::Vector3d p = initial_mm_.row(f).transpose();
+    if (SquaredDistanceToSegment(origin, tip, p) >= pair_length2) continue;
+    local[f] = frame(p);
+    if (local[f].y() != 0.0) sides[local[f].y() > 0.0 ? 1 : 0].push_back(f);
+  }
+  // A pair is at least as long as its features' distances to the probe's plane: with the
+  // other side sorted by that distance, each feature's partners are a prefix.
+  const auto by_distance = [&](int a, int b) {
+    return std::abs(local[a].y()) < std::abs(local[b].y());
+  };
+  std::sort(sides[1].begin(), sides[1].end(), by_distance);
+  for (int a : sides[0])
+    for (int b : sides[1]) {
+      const Eigen::Vector3d& la = local[a];
+      const Eigen::Vector3d& lb = local[b];
+      if (lb.y() - la.y() > pair_length) break;
+      const double length2 = (la - lb).squaredNorm();
+      if (length2 > pair_length2 || length2 == 0.0) continue;
+      const double s = la.y() / (la.y() - lb.y());
+      const Eigen::Vector3d crossing = la + s * (lb - la);
+      if (crossing.x() < 0.0 || crossing.x() > length || std::abs(crossing.z()) > r_f) continue;
+      bool crosses_cut = false;
+      for (size_t k = 0; k < cut_points.size() && !crosses_cut; ++k)
+        crosses_cut = SquaredDistanceToSegment(la, lb, cut_points[k]) < r_pc * r_pc;
+      for (size_t k = 0; k < cut_segments.size() && !crosses_cut; ++k)
+        crosses_cut = segments_cross(la, lb, cut_segments[k].first, cut_segments[k].second);
+      if (crosses_cut) continue;
+      const int first = std::min(a, b), second = std::max(a, b);
+      probe.pairs.push_back({first, second, first == a ? s : 1.0 - s, 1.0 / std::sqrt(length2)});
+    }
+}
+
+bool CutDetector::ProbeGrowth(bool front, DetectionResult* result, CutPoint* point) {
+  BuildProbe(front);  // when the extremity has changed
+  const Probe& probe = probes_[front ? 1 : 0];
+  const double threshold = std::max(options_.probe_outlier_factor * result->mean_measure,
+                                    options_.min_outlier_measure_mm);
+  probe_outliers_.clear();
+  const RowMatX3d& ratio =
+      options_.measure == CutMeasure::kModelRegularised ? model_mm_ : target_mm_;
+  for (size_t k = 0; k < probe.pairs.size(); ++k) {
+    const ProbePair& p = probe.pairs[k];
+    if (!alive_[p.first] || !alive_[p.second]) continue;
+    ++result->probe_pairs;
+    // mu as in Measure, with the frame-0 length kept, compared squared (most pairs are far
+    // below the threshold).
+    const Eigen::RowVector3d d = (model_mm_.row(p.first) - target_mm_.row(p.first)) -
+                                 (model_mm_.row(p.second) - target_mm_.row(p.second));
+    const Eigen::RowVector3d delta = ratio.row(p.first) - ratio.row(p.second);
+    const double mu2 = d.squaredNorm() * delta.squaredNorm() * p.inverse_length * p.inverse_length;
+    if (mu2 <= threshold * threshold) continue;
+    const double mu = std::sqrt(mu2);
+    if (options_.require_opening && !Opens({p.first, p.second})) continue;
+    probe_outliers_.emplace_back(static_cast<int>(k), mu);
+  }
+  // A feature in more than 3/4 of the outliers whose partners lie near their model points is a
+  // sliding feature's star, as for C^t (reject_lone_features).
+  if (options_.reject_lone_features && probe_outliers_.size() >= 2) {
+    int lone = -1, most = 0;
+    for (const auto& [k, mu] : probe_outliers_)
+      for (int f : {probe.pairs[k].first, probe.pairs[k].second})
+        if (++cluster_count_[f] > most) {
+          most = cluster_count_[f];
+          lone = f;
+        }
+    for (const auto& [k, mu] : probe_outliers_)
+      cluster_count_[probe.pairs[k].first] = cluster_count_[probe.pairs[k].second] = 0;
+    if (4 * most > 3 * static_cast<int>(probe_outliers_.size())) {
+      const auto error_mm = [&](int f) { return (model_mm_.row(f) - target_mm_.row(f)).norm(); };
+      double partners_mm = 0.0;
+      for (const auto& [k, mu] : probe_outliers_) {
+        const ProbePair& p = probe.pairs[k];
+        if (p.first == lone || p.second == lone)
+          partners_mm += error_mm(p.first == lone ? p.second : p.first);
+      }
+      if (partners_mm / most < 0.5 * error_mm(lone))
+        probe_outliers_.erase(std::remove_if(probe_outliers_.begin(), probe_outliers_.end(),
+                                             [&](const std::pair<int, double>& o) {
+                                               const ProbePair& p = probe.pairs[o.first];
+                                               return p.first == lone || p.second == lone;
+                                             }),
+                              probe_outliers_.end());
+    }
+  }
+  result->probe_outliers += static_cast<int>(probe_outliers_.size());
+  // Across the probe, the point lies at the mu-weighted barycentre of the pairs' midpoints, as
+  // for C^t: the pairs that open straddle the tear, so it follows the tear when the probe
+  // points off it (the crossings lie on the probe by construction, and an error in its
+  // direction would never be corrected). Along it, the point lies at the barycentre of the
+  // crossings, all ahead of the look-ahead.
+  double count = 0.0, weight = 0.0;
+  Eigen::Vector3d mid_t = Eigen::Vector3d::Zero(), mid_0 = Eigen::Vector3d::Zero();
+  Eigen::Vector3d cross_t = Eigen::Vector3d::Zero(), cross_0 = Eigen::Vector3d::Zero();
+  for (const auto& [k, mu] : probe_outliers_) {
+    count += std::min(mu / threshold, options_.outlier_weight_cap);
+    const ProbePair& p = probe.pairs[k];
+    mid_t += mu * 0.5 * (model_mm_.row(p.first) + model_mm_.row(p.second)).transpose();
+    mid_0 += mu * 0.5 * (initial_mm_.row(p.first) + initial_mm_.row(p.second)).transpose();
+    cross_t +=
+        mu * ((1.0 - p.s) * model_mm_.row(p.first) + p.s * model_mm_.row(p.second)).transpose();
+    cross_0 +=
+        mu * ((1.0 - p.s) * initial_mm_.row(p.first) + p.s * initial_mm_.row(p.second)).transpose();
+    weight += mu;
+  }
+  if (count < options_.min_outliers) return false;
+  const size_t last = polyline_.size() - 1;
+  const CutPoint& end = polyline_[front ? 0 : last];
+  const CutPoint& prev = polyline_[front ? 1 : last - 1];
+  const auto place = [&](const Eigen::Vector3d& mid, const Eigen::Vector3d& cross,
+                         const Eigen::Vector3d& along) -> Eigen::Vector3d {
+    const Eigen::Vector3d u = along.normalized();
+    return mid / weight + u.dot(cross / weight - mid / weight) * u;
+  };
+  point->position_mm = place(mid_t, cross_t, end.position_mm - prev.position_mm);
+  point->initial_position_mm =
+      place(mid_0, cross_0, end.initial_position_mm - prev.initial_position_mm);
+  point->frame = frame_;
+  point->num_outliers = static_cast<int>(probe_outliers_.size());
+  point->probe = true;
+  return true;
 }
 
 void CutDetector::SelectCluster(const DetectionResult& result) {

@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <limits>
 #include <optional>
 #include <unordered_map>
 #include <unordered_set>
@@ -166,6 +167,29 @@ struct CutDetectorOptions {
   // [deg] half-angle of the cone around a dead neighbour's direction searched for its bridge.
   // Default 30.
   double bridge_cone_half_angle_deg = 30.0;
+  // [-] Growth probe ahead of an extremity, its length as a factor on r_F; 0 disables. Not in
+  // the thesis. Once a tear's lips are lost, neither C_F nor the bridges span its continuation
+  // (the synthetic v-band after frame 90: every feature within ~15 mm of the seam below the
+  // model's crack is gone). Long pairs across it still see it. For each extremity of a polyline
+  // of >= 2 points that is not at the border, the probe is the segment of this length that
+  // continues the last segment (frame 0) from the end of the look-ahead. Its pairs are the pairs
+  // of alive features at most probe_pair_length_factor * r_F apart (frame 0) whose segment
+  // crosses the probe's plane (spanned by the direction and the local surface normal, from the
+  // frame-0 features around the extremity) over the probe, and crosses neither the polyline nor
+  // its r_pc spheres. They are measured with the same mu; a pair is a probe outlier when mu >
+  // probe_outlier_factor * mean(mu) (the mean over C_F, as for tau) and it opens
+  // (require_opening), and a feature's star is dropped as by reject_lone_features. When their
+  // weighted count reaches n, a cut point is inserted at that extremity, at the mu-weighted
+  // barycentre of the crossing points. It only grows a cut: a scene with no polyline is not
+  // probed, and at most one point per frame is inserted, only when C^t gave none. Default 2.
+  double probe_length_factor = 2.0;
+  // [-] Longest probe pair, frame 0, as a factor on r_F. Default 3.
+  double probe_pair_length_factor = 3.0;
+  // tau_p [-]: outlier factor of the probe pairs. Longer than r_F, a pair carries more of the
+  // model's smooth misfit in mu1 than one of C_F; across a tear ahead of the model's crack it
+  // reaches 15-30 mean(mu) on the synthetic v-band, against at most 11 for pairs across the
+  // uncut band beyond the tear's tip (docs/detection.md). Default 12.
+  double probe_outlier_factor = 12.0;
 
   // Throws arreg::Error naming the offending field.
   void Check() const;
@@ -191,6 +215,7 @@ struct CutPoint {
   Eigen::Vector3d initial_position_mm;  // the same weights applied to the frame-0 midpoints (p^0)
   int frame = 0;                        // Update count (0-based) at insertion
   int num_outliers = 0;                 // outliers that produced it
+  bool probe = false;  // found by the growth probe (probe_length_factor) rather than C^t
 };
 
 struct DetectionResult {
@@ -206,7 +231,9 @@ struct DetectionResult {
   int one_sided_clusters = 0;      // clusters rejected this frame by min_opening_balance
   int refused_points = 0;          // cut points refused this frame as no growth of the polyline
   int pairs_removed_by_death = 0;  // pairs with a feature that died this frame
-  int pairs_bridged = 0;  // pairs added this frame in place of dead ones (bridge_radius_factor)
+  int pairs_bridged = 0;   // pairs added this frame in place of dead ones (bridge_radius_factor)
+  int probe_pairs = 0;     // alive probe pairs evaluated this frame (probe_length_factor)
+  int probe_outliers = 0;  // of which outliers (after dropping a feature's star)
   bool segment_added = false;                // the polyline has >= 2 points and grew this frame
   std::vector<Eigen::Vector3d> polyline_mm;  // cut points in order (p^t at insertion)
   std::optional<Eigen::Vector3d>
@@ -263,6 +290,16 @@ class CutDetector {
   static long long CellHash(long long x, long long y, long long z) {
     return (x * 73856093LL) ^ (y * 19349663LL) ^ (z * 83492791LL);
   }
+  // Inserts a selected point at the given place and updates the look-ahead, the border state
+  // and C^t (pairs crossing its r_pc sphere); returns true when it went to the front.
+  bool CommitCutPoint(const CutPoint& point, Placement placement, DetectionResult* result);
+  // mu of the pair (l, m) from this frame's positions (eq. 7.9-7.11).
+  double Measure(int l, int m) const;
+  // The growth probe of an extremity (see CutDetectorOptions::probe_length_factor): evaluates
+  // its pairs and fills *point when their count reaches n.
+  bool ProbeGrowth(bool front, DetectionResult* result, CutPoint* point);
+  // Builds the probe's pairs, when its extremity has changed since the last build.
+  void BuildProbe(bool front);
   // Fills cluster_ from candidates_ (see CutDetectorOptions::cluster_outliers).
   void SelectCluster(const DetectionResult& result);
   // When one feature is in more than 3/4 of cluster_'s pairs and their other features are
@@ -291,6 +328,23 @@ class CutDetector {
   std::vector<std::vector<int>> bridge_candidates_;  // per feature, see BridgeCandidates
   std::vector<char> bridge_candidates_known_;
   std::vector<CutPoint> polyline_;  // front() and back() are the extremities
+  // A probe pair: features l < m and the parameter s in [0, 1] of the crossing on their frame-0
+  // segment.
+  struct ProbePair {
+    int first = 0;
+    int second = 0;
+    double s = 0.0;
+    double inverse_length = 0.0;  // 1 / |p0_first - p0_second|
+  };
+  struct Probe {
+    // The extremity it was built for (frame 0) and whether it was at the border then.
+    Eigen::Vector3d end = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());
+    Eigen::Vector3d prev = end;
+    bool at_border = false;
+    std::vector<ProbePair> pairs;
+  };
+  Probe probes_[2];                                     // [0] back, [1] front
+  std::vector<std::pair<int, double>> probe_outliers_;  // (index into the probe's pairs, mu)
   bool front_at_border_ = false;
   bool back_at_border_ = false;
   int frame_ = 0;

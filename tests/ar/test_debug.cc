@@ -134,6 +134,10 @@ TEST(DebugRecorder, PairsNameNeighboursByIdAndFlagOutliersAboveTauMean) {
     const auto& det = rec["detection"];
     const cutting::DetectionResult& d = r.detections[t];
     ASSERT_EQ(det["pairs_bridged"].get<int>(), d.pairs_bridged);
+    ASSERT_EQ(det["probe_pairs"].get<int>(), d.probe_pairs);
+    ASSERT_EQ(det["probe_outliers"].get<int>(), d.probe_outliers);
+    for (size_t i = 0; i < d.new_cut_points.size(); ++i)
+      ASSERT_EQ(det["new_cut_points"][i]["probe"].get<bool>(), d.new_cut_points[i].probe);
     bridged += d.pairs_bridged;
     ASSERT_EQ(det["pairs"].size(), d.pairs.size());
     EXPECT_NEAR(det["mean_mu"].get<double>(), d.mean_measure, 1e-12);

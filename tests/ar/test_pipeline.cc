@@ -275,6 +275,19 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_EQ(ReadPipelineOptions(scene).cutting.cut_configuration, "current");
   scene.cutting = {{"cut_configuration", "deformed"}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  // Session 8: the growth probe.
+  EXPECT_DOUBLE_EQ(o.cutting.detector.probe_length_factor, 2.0);
+  EXPECT_DOUBLE_EQ(o.cutting.detector.probe_pair_length_factor, 3.0);
+  EXPECT_DOUBLE_EQ(o.cutting.detector.probe_outlier_factor, 12.0);
+  scene.cutting = {{"probe_length_factor", 0.0},
+                   {"probe_pair_length_factor", 2.5},
+                   {"probe_outlier_factor", 15.0}};
+  const PipelineOptions p = ReadPipelineOptions(scene);
+  EXPECT_DOUBLE_EQ(p.cutting.detector.probe_length_factor, 0.0);
+  EXPECT_DOUBLE_EQ(p.cutting.detector.probe_pair_length_factor, 2.5);
+  EXPECT_DOUBLE_EQ(p.cutting.detector.probe_outlier_factor, 15.0);
+  scene.cutting = {{"probe_outlier_factor", -1.0}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
 }
 
 TEST(Overlay, DrawsOnlyOverTheOrganAndBlendsByOpacity) {

@@ -206,6 +206,15 @@ TEST(CutDetectorOptions, CheckNamesTheField) {
   o = {};
   o.bridge_cone_half_angle_deg = 90.0;
   expect_named(o, "bridge_cone_half_angle_deg");
+  o = {};
+  o.probe_length_factor = -0.5;
+  expect_named(o, "probe_length_factor");
+  o = {};
+  o.probe_pair_length_factor = 0.0;
+  expect_named(o, "probe_pair_length_factor");
+  o = {};
+  o.probe_outlier_factor = std::nan("");
+  expect_named(o, "probe_outlier_factor");
 }
 
 TEST(CutDetector, NeighbourGraphEqualsBruteForce) {
@@ -490,6 +499,7 @@ TEST(CutDetector, LostLipFeaturesAreBridged) {
     scenario.stiffness_mm = 20.0;
     CutDetectorOptions no_bridges;
     no_bridges.bridge_radius_factor = 0.0;
+    no_bridges.probe_length_factor = 0.0;  // the thesis's fixed C_F alone
     const SeamRun without = RunSeam(g, scenario, no_bridges);
     EXPECT_GT(without.died, 50);  // 77: every lip feature beyond 30 mm
     EXPECT_EQ(without.bridged, 0);
@@ -497,7 +507,9 @@ TEST(CutDetector, LostLipFeaturesAreBridged) {
       EXPECT_LT(scenario.Coordinates(p.initial_position_mm).x(), 60.0)
           << "without bridges the polyline stops near where the lips are lost";
 
-    const SeamRun run = RunSeam(g, scenario, CutDetectorOptions());
+    CutDetectorOptions bridges;
+    bridges.probe_length_factor = 0.0;
+    const SeamRun run = RunSeam(g, scenario, bridges);
     const CutDetectorOptions& options = run.resolved;
     EXPECT_EQ(run.died, without.died);
     EXPECT_GT(run.bridged, 0);
@@ -517,6 +529,45 @@ TEST(CutDetector, LostLipFeaturesAreBridged) {
     EXPECT_GT(scenario.Coordinates(run.extended_initial.back()).x(),
               scenario.tip_end_mm - 2 * options.cut_point_radius_mm - options.neighbour_radius_mm);
   }
+}
+
+// The same tear with its lips lost, followed by the growth probe alone (no bridges; without
+// either the polyline stops before 60 mm, above): long pairs (up to 3 r_F) across the
+// polyline's continuation ahead of its end still span the gap. Its points lie on the seam
+// (their position across the probe comes from the pairs' midpoints, so the polyline's
+// direction is corrected; from the crossings alone it drifted 22 mm off the seam in 90 mm),
+// never ahead of the tip, and the extended polyline follows the tip to within r_F + 2 r_pc
+// (measured: 13-22 mm behind on a 120 mm tear). Where the tear stops (70 mm), the probe stops
+// within 2 r_pc of it: pairs across the uncut band beyond the tip do not open.
+TEST(CutDetector, GrowthProbeFollowsATearWhoseLipsAreLost) {
+  const FeatureGrid g = MakeGrid();
+  for (unsigned seed : {1u, 2u, 3u, 4u, 5u})
+    for (const double tip_end : {70.0, 120.0}) {
+      SCOPED_TRACE("seed " + std::to_string(seed) + ", tear to " + std::to_string(tip_end));
+      SeamScenario scenario;
+      scenario.seed = seed;
+      scenario.lip_loss_mm = 10.0;
+      scenario.lip_loss_from_mm = 30.0;
+      scenario.stiffness_mm = 20.0;
+      scenario.tip_end_mm = tip_end;
+      CutDetectorOptions probe;
+      probe.bridge_radius_factor = 0.0;
+      const SeamRun run = RunSeam(g, scenario, probe);
+      const CutDetectorOptions& options = run.resolved;
+      EXPECT_EQ(run.bridged, 0);
+      ASSERT_GE(run.points.size(), 3u);
+      for (size_t i = 0; i < run.points.size(); ++i) {
+        const Eigen::Vector2d c = scenario.Coordinates(run.points[i].initial_position_mm);
+        EXPECT_LT(std::abs(c.y()), options.cut_point_radius_mm) << "cut point " << i;
+        EXPECT_LT(c.x(), run.tip_at_point[i] + options.cut_point_radius_mm) << "cut point " << i;
+        if (i > 0) {
+          EXPECT_GT(c.x(), scenario.Coordinates(run.points[i - 1].initial_position_mm).x());
+        }
+      }
+      const double end = scenario.Coordinates(run.extended_initial.back()).x();
+      EXPECT_GT(end, tip_end - 2 * options.cut_point_radius_mm - options.neighbour_radius_mm);
+      EXPECT_LT(end, tip_end + 2 * options.cut_point_radius_mm);
+    }
 }
 
 TEST(CutDetector, ImageOnlyMeasureAlsoFindsTheSeam) {

@@ -220,7 +220,8 @@ nlohmann::json MakeFrameRecord(const pipeline::FrameState& frame, const PinholeC
       new_points.push_back({{"mm", Point3(c.position_mm)},
                             {"px", PixelOf(camera, c.position_mm, scale)},
                             {"initial_mm", Point3(c.initial_position_mm)},
-                            {"num_outliers", c.num_outliers}});
+                            {"num_outliers", c.num_outliers},
+                            {"probe", c.probe}});
     nlohmann::json polyline_px, extended_px;
     nlohmann::json polyline_mm = Polyline(camera, d.polyline_mm, scale, &polyline_px);
     nlohmann::json extended_mm = Polyline(camera, d.extended_polyline_mm, scale, &extended_px);
@@ -233,6 +234,8 @@ nlohmann::json MakeFrameRecord(const pipeline::FrameState& frame, const PinholeC
                  {"pairs_removed_by_cut", d.pairs_removed_by_cut},
                  {"pairs_removed_by_death", d.pairs_removed_by_death},
                  {"pairs_bridged", d.pairs_bridged},
+                 {"probe_pairs", d.probe_pairs},
+                 {"probe_outliers", d.probe_outliers},
                  {"lone_features", d.lone_features},
                  {"one_sided_clusters", d.one_sided_clusters},
                  {"refused_points", d.refused_points},

@@ -190,6 +190,9 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("min_outlier_measure_mm", &o->detector.min_outlier_measure_mm);
   r.Optional("bridge_radius_factor", &o->detector.bridge_radius_factor);
   r.Optional("bridge_cone_half_angle_deg", &o->detector.bridge_cone_half_angle_deg);
+  r.Optional("probe_length_factor", &o->detector.probe_length_factor);
+  r.Optional("probe_pair_length_factor", &o->detector.probe_pair_length_factor);
+  r.Optional("probe_outlier_factor", &o->detector.probe_outlier_factor);
   r.Optional("spring_margin_mm", &o->spring_margin_mm);
   r.Optional("extrusion_margin_mm", &o->extrusion_margin_mm);
   r.OptionalChoice("method", {"flips", "bielser"}, &o->method);
@@ -295,6 +298,9 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"min_outlier_measure_mm", o.cutting.detector.min_outlier_measure_mm},
       {"bridge_radius_factor", o.cutting.detector.bridge_radius_factor},
       {"bridge_cone_half_angle_deg", o.cutting.detector.bridge_cone_half_angle_deg},
+      {"probe_length_factor", o.cutting.detector.probe_length_factor},
+      {"probe_pair_length_factor", o.cutting.detector.probe_pair_length_factor},
+      {"probe_outlier_factor", o.cutting.detector.probe_outlier_factor},
       {"spring_margin_mm", o.cutting.spring_margin_mm},
       {"extrusion_margin_mm", o.cutting.extrusion_margin_mm},
       {"method", o.cutting.method},
