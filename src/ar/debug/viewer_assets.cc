@@ -290,12 +290,15 @@ const char kViewerJs[] = R"JS('use strict';
       rows.push(['pairs', det.pairs.length], ['outlier pairs / n', det.outliers + ' / ' + det.min_outliers],
         ['mean mu [mm]', det.mean_mu], ['tau', det.tau], ['threshold tau*mean [mm]', det.threshold],
         ['new cut points', det.new_cut_points.length], ['polyline points', det.polyline_px.length],
-        ['pairs removed (cut / death) / bridged', det.pairs_removed_by_cut + ' / ' + det.pairs_removed_by_death + ' / ' + det.pairs_bridged]);
+        ['pairs removed (cut / death) / bridged', det.pairs_removed_by_cut + ' / ' + det.pairs_removed_by_death + ' / ' + det.pairs_bridged],
+        ['growth probe pairs / outliers', det.probe_pairs + ' / ' + det.probe_outliers +
+          (det.new_cut_points.some((c) => c.probe) ? ' (point inserted)' : '')]);
     } else {
       rows.push(['cut detection', 'off']);
     }
     rec.cut_events.forEach((e) => rows.push(['cut event', e.status +
-      (e.status === 'cut' ? ' (' + e.configuration + ', depth ' + e.depth_fraction + ', +' + e.new_vertices + ' V)' : '') +
+      (e.status === 'cut' ? ' (' + e.configuration + ', depth ' + e.depth_fraction + ', +' + e.new_vertices + ' V' +
+        (e.welded_vertices ? ', ' + e.welded_vertices + ' V of debris welded' : '') + ')' : '') +
       (e.message ? ': ' + e.message : '')]));
     if (rec.model) rows.push(['model V / T', rec.model.vertices + ' / ' + rec.model.tetrahedra]);
     for (const k of Object.keys(rec.ms)) rows.push([k + ' [ms]', rec.ms[k]]);
