@@ -632,32 +632,17 @@ bool CutDetector::ProbeGrowth(bool front, DetectionResult* result, CutPoint* poi
   }
   // A feature in more than 3/4 of the outliers whose partners lie near their model points is a
   // sliding feature's star, as for C^t (reject_lone_features).
-  if (options_.reject_lone_features && probe_outliers_.size() >= 2) {
-    int lone = -1, most = 0;
-    for (const auto& [k, mu] : probe_outliers_)
-      for (int f : {probe.pairs[k].first, probe.pairs[k].second})
-        if (++cluster_count_[f] > most) {
-          most = cluster_count_[f];
-          lone = f;
-        }
-    for (const auto& [k, mu] : probe_outliers_)
-      cluster_count_[probe.pairs[k].first] = cluster_count_[probe.pairs[k].second] = 0;
-    if (4 * most > 3 * static_cast<int>(probe_outliers_.size())) {
-      const auto error_mm = [&](int f) { return (model_mm_.row(f) - target_mm_.row(f)).norm(); };
-      double partners_mm = 0.0;
-      for (const auto& [k, mu] : probe_outliers_) {
-        const ProbePair& p = probe.pairs[k];
-        if (p.first == lone || p.second == lone)
-          partners_mm += error_mm(p.first == lone ? p.second : p.first);
-      }
-      if (partners_mm / most < 0.5 * error_mm(lone))
-        probe_outliers_.erase(std::remove_if(probe_outliers_.begin(), probe_outliers_.end(),
-                                             [&](const std::pair<int, double>& o) {
-                                               const ProbePair& p = probe.pairs[o.first];
-                                               return p.first == lone || p.second == lone;
-                                             }),
-                              probe_outliers_.end());
-    }
+  if (options_.reject_lone_features) {
+    const int lone = LoneFeature(
+        static_cast<int>(probe_outliers_.size()),
+        [&](int i) -> const ProbePair& { return probe.pairs[probe_outliers_[i].first]; });
+    if (lone >= 0)
+      probe_outliers_.erase(std::remove_if(probe_outliers_.begin(), probe_outliers_.end(),
+                                           [&](const std::pair<int, double>& o) {
+                                             const ProbePair& p = probe.pairs[o.first];
+                                             return p.first == lone || p.second == lone;
+                                           }),
+                            probe_outliers_.end());
   }
   result->probe_outliers += static_cast<int>(probe_outliers_.size());
   // Across the probe, the point lies at the mu-weighted barycentre of the pairs' midpoints, as
@@ -737,28 +722,36 @@ bool CutDetector::Opens(const FeaturePair& p) const {
          (model_mm_.row(p.first) - model_mm_.row(p.second)).squaredNorm();
 }
 
-bool CutDetector::RemoveLoneFeature(const DetectionResult& result) {
-  if (cluster_.size() < 2) return false;
+template <typename PairOf>
+int CutDetector::LoneFeature(int num_pairs, const PairOf& pair_of) {
+  if (num_pairs < 2) return -1;
   int lone = -1, most = 0;
-  for (int k : cluster_)
-    for (int f : {result.pairs[k].first, result.pairs[k].second})
+  for (int i = 0; i < num_pairs; ++i)
+    for (int f : {pair_of(i).first, pair_of(i).second})
       if (++cluster_count_[f] > most) {
         most = cluster_count_[f];
         lone = f;
       }
-  for (int k : cluster_)
-    cluster_count_[result.pairs[k].first] = cluster_count_[result.pairs[k].second] = 0;
-  if (4 * most <= 3 * static_cast<int>(cluster_.size())) return false;
+  for (int i = 0; i < num_pairs; ++i)
+    cluster_count_[pair_of(i).first] = cluster_count_[pair_of(i).second] = 0;
+  if (4 * most <= 3 * num_pairs) return -1;
   // The hub's own displacement error explains its pairs when its partners' are small (across
   // a cut, the features on the other side are as far from their model points).
   const auto error_mm = [&](int f) { return (model_mm_.row(f) - target_mm_.row(f)).norm(); };
   double partners_mm = 0.0;
-  for (int k : cluster_) {
-    const FeaturePair& p = result.pairs[k];
+  for (int i = 0; i < num_pairs; ++i) {
+    const auto& p = pair_of(i);
     if (p.first == lone || p.second == lone)
       partners_mm += error_mm(p.first == lone ? p.second : p.first);
   }
-  if (partners_mm / most >= 0.5 * error_mm(lone)) return false;
+  return partners_mm / most < 0.5 * error_mm(lone) ? lone : -1;
+}
+
+bool CutDetector::RemoveLoneFeature(const DetectionResult& result) {
+  const int lone = LoneFeature(static_cast<int>(cluster_.size()), [&](int i) -> const FeaturePair& {
+    return result.pairs[cluster_[i]];
+  });
+  if (lone < 0) return false;
   candidates_.erase(
       std::remove_if(
           candidates_.begin(), candidates_.end(),

@@ -306,6 +306,11 @@ class CutDetector {
   // near their model points, removes its pairs from candidates_ and returns true (see
   // CutDetectorOptions::reject_lone_features).
   bool RemoveLoneFeature(const DetectionResult& result);
+  // The feature in more than 3/4 of the pairs pair_of(0 .. num_pairs - 1) (each with .first and
+  // .second feature indices) whose partners lie on average less than half as far from their
+  // model points as it does; -1 if none (see CutDetectorOptions::reject_lone_features).
+  template <typename PairOf>
+  int LoneFeature(int num_pairs, const PairOf& pair_of);
   // Sum over `outliers` (indices into result.pairs) of min(mu / threshold, outlier_weight_cap).
   double OutlierCount(const std::vector<int>& outliers, const DetectionResult& result) const;
   // The pair's targets are farther apart than its model points (delta^1 > delta^t).
