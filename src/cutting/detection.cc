@@ -446,19 +446,17 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
 }
 
 double CutDetector::Measure(int l, int m) const {
-  const RowMatX3d& ratio_positions =
-      options_.measure == CutMeasure::kModelRegularised ? model_mm_ : target_mm_;
-  const Eigen::Vector3d dl = model_mm_.row(l) - target_mm_.row(l);
-  const Eigen::Vector3d dm = model_mm_.row(m) - target_mm_.row(m);
-  const double mu1 = (dl - dm).norm();
+  Eigen::Vector3d misfit, span;
+  PairDifferences(l, m, &misfit, &span);
+  const double mu1 = misfit.norm();
   const double delta0 = (initial_mm_.row(l) - initial_mm_.row(m)).norm();
-  const double delta = (ratio_positions.row(l) - ratio_positions.row(m)).norm();
+  const double delta = span.norm();
   // Coincident initial features carry no length information; treat them as unstretched.
   const double mu2 = delta0 > 0.0 ? delta / delta0 : 1.0;
   return mu1 * mu2;
 }
 
-bool CutDetector::CommitCutPoint(const CutPoint& point, Placement placement,
+void CutDetector::CommitCutPoint(const CutPoint& point, Placement placement,
                                  DetectionResult* result) {
   const bool front = InsertCutPoint(point, placement);
   result->new_cut_points.push_back(point);
@@ -479,7 +477,6 @@ bool CutDetector::CommitCutPoint(const CutPoint& point, Placement placement,
     }
   }
   RemovePairsNear(point.position_mm, &result->pairs_removed_by_cut);
-  return front;
 }
 
 void CutDetector::BuildProbe(bool front) {
@@ -613,18 +610,16 @@ bool CutDetector::ProbeGrowth(bool front, DetectionResult* result, CutPoint* poi
   const double threshold = std::max(options_.probe_outlier_factor * result->mean_measure,
                                     options_.min_outlier_measure_mm);
   probe_outliers_.clear();
-  const RowMatX3d& ratio =
-      options_.measure == CutMeasure::kModelRegularised ? model_mm_ : target_mm_;
+  Eigen::Vector3d misfit, span;
   for (size_t k = 0; k < probe.pairs.size(); ++k) {
     const ProbePair& p = probe.pairs[k];
     if (!alive_[p.first] || !alive_[p.second]) continue;
     ++result->probe_pairs;
     // mu as in Measure, with the frame-0 length kept, compared squared (most pairs are far
     // below the threshold).
-    const Eigen::RowVector3d d = (model_mm_.row(p.first) - target_mm_.row(p.first)) -
-                                 (model_mm_.row(p.second) - target_mm_.row(p.second));
-    const Eigen::RowVector3d delta = ratio.row(p.first) - ratio.row(p.second);
-    const double mu2 = d.squaredNorm() * delta.squaredNorm() * p.inverse_length * p.inverse_length;
+    PairDifferences(p.first, p.second, &misfit, &span);
+    const double mu2 =
+        misfit.squaredNorm() * span.squaredNorm() * p.inverse_length * p.inverse_length;
     if (mu2 <= threshold * threshold) continue;
     const double mu = std::sqrt(mu2);
     if (options_.require_opening && !Opens({p.first, p.second})) continue;

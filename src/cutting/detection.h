@@ -171,17 +171,19 @@ struct CutDetectorOptions {
   // the thesis. Once a tear's lips are lost, neither C_F nor the bridges span its continuation
   // (the synthetic v-band after frame 90: every feature within ~15 mm of the seam below the
   // model's crack is gone). Long pairs across it still see it. For each extremity of a polyline
-  // of >= 2 points that is not at the border, the probe is the segment of this length that
-  // continues the last segment (frame 0) from the end of the look-ahead. Its pairs are the pairs
-  // of alive features at most probe_pair_length_factor * r_F apart (frame 0) whose segment
-  // crosses the probe's plane (spanned by the direction and the local surface normal, from the
-  // frame-0 features around the extremity) over the probe, and crosses neither the polyline nor
+  // of >= 2 points (at the border too: the border test sees only the alive features), the
+  // probe is the segment of this length that continues the last segment (frame 0) from the end
+  // of the extremity's extension (look-ahead or border extension). Its pairs are the pairs of
+  // alive features at most probe_pair_length_factor * r_F apart (frame 0) whose segment crosses
+  // the probe's plane (spanned by the direction and the local surface normal, from the frame-0
+  // features around the probe's start) over the probe, and crosses neither the polyline nor
   // its r_pc spheres. They are measured with the same mu; a pair is a probe outlier when mu >
   // probe_outlier_factor * mean(mu) (the mean over C_F, as for tau) and it opens
   // (require_opening), and a feature's star is dropped as by reject_lone_features. When their
-  // weighted count reaches n, a cut point is inserted at that extremity, at the mu-weighted
-  // barycentre of the crossing points. It only grows a cut: a scene with no polyline is not
-  // probed, and at most one point per frame is inserted, only when C^t gave none. Default 2.
+  // weighted count reaches n, a cut point is inserted at that extremity: across the probe at the
+  // mu-weighted barycentre of the pairs' midpoints, along it at that of their crossings. It only
+  // grows a cut: a scene with no polyline is not probed, and at most one point per frame is
+  // inserted, only when C^t gave none. Default 2.
   double probe_length_factor = 2.0;
   // [-] Longest probe pair, frame 0, as a factor on r_F. Default 3.
   double probe_pair_length_factor = 3.0;
@@ -291,8 +293,18 @@ class CutDetector {
     return (x * 73856093LL) ^ (y * 19349663LL) ^ (z * 83492791LL);
   }
   // Inserts a selected point at the given place and updates the look-ahead, the border state
-  // and C^t (pairs crossing its r_pc sphere); returns true when it went to the front.
-  bool CommitCutPoint(const CutPoint& point, Placement placement, DetectionResult* result);
+  // and C^t (pairs crossing its r_pc sphere).
+  void CommitCutPoint(const CutPoint& point, Placement placement, DetectionResult* result);
+  // d_l - d_m (d = p^t - p^1, eq. 7.9) and the pair's vector in the positions mu2 compares with
+  // frame 0 (eq. 7.10: p^t or p^1, CutDetectorOptions::measure), this frame.
+  // Inline: it is in the per-frame loop over C^t.
+  void PairDifferences(int l, int m, Eigen::Vector3d* misfit, Eigen::Vector3d* span) const {
+    const RowMatX3d& ratio_positions =
+        options_.measure == CutMeasure::kModelRegularised ? model_mm_ : target_mm_;
+    *misfit = ((model_mm_.row(l) - target_mm_.row(l)) - (model_mm_.row(m) - target_mm_.row(m)))
+                  .transpose();
+    *span = (ratio_positions.row(l) - ratio_positions.row(m)).transpose();
+  }
   // mu of the pair (l, m) from this frame's positions (eq. 7.9-7.11).
   double Measure(int l, int m) const;
   // The growth probe of an extremity (see CutDetectorOptions::probe_length_factor): evaluates

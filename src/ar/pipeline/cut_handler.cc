@@ -74,37 +74,6 @@ constexpr double kSliverFraction = 0.05;
 // the nearest piece (CutHandler::FollowWelds) rather than simulated or refused.
 constexpr double kDebrisFraction = 0.005;
 
-struct Pieces {
-  Eigen::VectorXi piece;       // per element, its piece (elements connected through vertices)
-  std::vector<double> volume;  // per piece, its rest volume
-  double total = 0.0;
-  bool debris(int p) const { return volume[p] < kDebrisFraction * total; }
-  // Pieces that are not debris.
-  int Count() const {
-    int n = 0;
-    for (int p = 0; p < static_cast<int>(volume.size()); ++p) n += !debris(p);
-    return n;
-  }
-  // Pieces from the debris bound to kSliverFraction of the volume.
-  int Slivers() const {
-    int n = 0;
-    for (int p = 0; p < static_cast<int>(volume.size()); ++p)
-      n += !debris(p) && volume[p] < kSliverFraction * total;
-    return n;
-  }
-};
-
-Pieces FindPieces(const TetMesh& rest) {
-  Pieces pieces;
-  int count = 0;
-  pieces.piece = ConnectedComponents(rest, Adjacency::kVertex, &count);
-  const Eigen::VectorXd volumes = TetVolumes(rest);
-  pieces.volume.assign(count, 0.0);
-  for (int t = 0; t < rest.num_tetrahedra(); ++t) pieces.volume[pieces.piece(t)] += volumes(t);
-  pieces.total = volumes.sum();
-  return pieces;
-}
-
 // An end of the crack this close to the model's outline, in mean rest edge lengths, is
 // carried across it: the elements between could not hold a ligament that thin, and a crack
 // that stops a fraction of an element short of the border keeps its lips sewn there (a slit
@@ -144,6 +113,37 @@ std::vector<Eigen::Vector3d> CarryEndsAcrossTheOutline(std::vector<Eigen::Vector
 }
 
 }  // namespace
+
+struct CutHandler::Pieces {
+  Eigen::VectorXi piece;       // per element, its piece (elements connected through vertices)
+  std::vector<double> volume;  // per piece, its rest volume
+  double total = 0.0;
+  bool debris(int p) const { return volume[p] < kDebrisFraction * total; }
+  // Pieces that are not debris.
+  int Count() const {
+    int n = 0;
+    for (int p = 0; p < static_cast<int>(volume.size()); ++p) n += !debris(p);
+    return n;
+  }
+  // Pieces from the debris bound to kSliverFraction of the volume.
+  int Slivers() const {
+    int n = 0;
+    for (int p = 0; p < static_cast<int>(volume.size()); ++p)
+      n += !debris(p) && volume[p] < kSliverFraction * total;
+    return n;
+  }
+};
+
+CutHandler::Pieces CutHandler::FindPieces(const TetMesh& rest) {
+  Pieces pieces;
+  int count = 0;
+  pieces.piece = ConnectedComponents(rest, Adjacency::kVertex, &count);
+  const Eigen::VectorXd volumes = TetVolumes(rest);
+  pieces.volume.assign(count, 0.0);
+  for (int t = 0; t < rest.num_tetrahedra(); ++t) pieces.volume[pieces.piece(t)] += volumes(t);
+  pieces.total = volumes.sum();
+  return pieces;
+}
 
 cutting::CutSummary CutHandler::CutWithRetry(const SurfaceMesh& s, cutting::CutChange* change) {
   const cutting::CutSurface cs{s.vertices, s.faces};
@@ -204,6 +204,7 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
     SurfaceMesh s;
     cutting::CutChange change;
     cutting::CutSummary cut;
+    Pieces pieces_after;  // of the cut that applies
     double depth = 0.0;
     bool in_rest = false;
     std::vector<bool> configurations = {false};
@@ -230,8 +231,8 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
                           "every segment of the polyline was applied before");
         cut = CutWithRetry(s, &change);
         if (cut.status != cutting::CutStatus::kCut) break;
-        const Pieces after = FindPieces(mesh_->RestMesh());
-        if (rest && after.Slivers() > pieces_before.Slivers()) {
+        pieces_after = FindPieces(mesh_->RestMesh());
+        if (rest && pieces_after.Slivers() > pieces_before.Slivers()) {
           // The polyline turned away from an earlier look-ahead, and the two cracks cut off
           // the elements between them; this frame's strip (current configuration) may not.
           *mesh_ = start;
@@ -239,7 +240,7 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
           cut.message = "S cuts off a sliver of the model";
           break;
         }
-        if (!options_.keep_connected || after.Count() <= pieces_before.Count()) break;
+        if (!options_.keep_connected || pieces_after.Count() <= pieces_before.Count()) break;
         *mesh_ = start;
         cut.status = cutting::CutStatus::kRejected;
         cut.message = "S splits the body at every depth tried (cutting.keep_connected)";
@@ -288,7 +289,8 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
         ++ev.springs_removed;
       }
       applied_points_.insert(applied_points_.end(), polyline_mm.begin(), polyline_mm.end());
-      ev.welded_vertices = WeldDebris(&state);
+      // The state is numbered like mesh_, so the pieces found there are the state's.
+      ev.welded_vertices = WeldDebris(pieces_after, &state);
       ev.new_vertices = state.num_vertices() - v_before;
       ev.new_tetrahedra = state.num_tetrahedra() - t_before;
     } else {
@@ -308,9 +310,8 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
   return ev;
 }
 
-int CutHandler::WeldDebris(mechanics::MechanicalState* state) {
+int CutHandler::WeldDebris(const Pieces& pieces, mechanics::MechanicalState* state) {
   const TetMesh rest = state->RestMesh();
-  const Pieces pieces = FindPieces(rest);
   // The elements before this event may have been replaced: every weld is made again.
   const size_t welded_before = welds_.size();
   welds_.clear();
@@ -341,20 +342,18 @@ int CutHandler::WeldDebris(mechanics::MechanicalState* state) {
       }
     }
     if (parent < 0) continue;  // the whole model is debris: leave it to the solver
-    Eigen::Matrix4d corners;
-    for (int a = 0; a < 4; ++a) {
-      corners.col(a).head<3>() = rest.vertices.row(rest.tetrahedra(parent, a)).transpose();
-      corners(3, a) = 1.0;
-    }
-    const Eigen::Matrix4d inverse = corners.inverse();
+    const auto corner = [&](int a) -> Eigen::Vector3d {
+      return rest.vertices.row(rest.tetrahedra(parent, a)).transpose();
+    };
     for (int t : elements[p])
       for (int a = 0; a < 4; ++a) {
         const int v = rest.tetrahedra(t, a);
         if (is_welded[v]) continue;
         is_welded[v] = 1;
-        Eigen::Vector4d x;
-        x << rest.vertices.row(v).transpose(), 1.0;
-        welds_.push_back({v, parent, inverse * x});
+        welds_.push_back(
+            {v,
+             {parent, mechanics::BarycentricCoordinates(rest.vertices.row(v).transpose(), corner(0),
+                                                        corner(1), corner(2), corner(3))}});
       }
   }
   std::vector<int> vertices;
@@ -370,9 +369,9 @@ void CutHandler::FollowWelds(mechanics::MechanicalState* state) const {
   for (const Weld& w : welds_) {
     Eigen::RowVector3d position = Eigen::RowVector3d::Zero(), velocity = position;
     for (int a = 0; a < 4; ++a) {
-      const int corner = state->tetrahedra()(w.element, a);
-      position += w.weights(a) * x.row(corner);
-      velocity += w.weights(a) * v.row(corner);
+      const int corner = state->tetrahedra()(w.at.tet, a);
+      position += w.at.barycentric(a) * x.row(corner);
+      velocity += w.at.barycentric(a) * v.row(corner);
     }
     x.row(w.vertex) = position;
     v.row(w.vertex) = velocity;

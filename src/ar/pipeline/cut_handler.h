@@ -72,13 +72,16 @@ class CutHandler {
   SurfaceMesh NewPart(const std::vector<Eigen::Vector3d>& polyline_mm,
                       const Eigen::Vector3d& eye_mm, const cutting::CutExtrusionOptions& ext) const;
 
-  // Welds every debris piece of the state (see FollowWelds); returns how many vertices were
-  // welded by this call beyond those welded before.
-  int WeldDebris(mechanics::MechanicalState* state);
+  // The model's pieces (elements connected through vertices) and their rest volumes; defined
+  // in the .cc.
+  struct Pieces;
+  static Pieces FindPieces(const TetMesh& rest);
+  // Welds every debris piece of the state, given its pieces (see FollowWelds); returns how
+  // many vertices were welded by this call beyond those welded before.
+  int WeldDebris(const Pieces& pieces, mechanics::MechanicalState* state);
   struct Weld {
     int vertex = -1;
-    int element = -1;         // the element it follows
-    Eigen::Vector4d weights;  // its barycentric coordinates there (rest)
+    mechanics::EmbeddedPoint at;  // the element it follows, rest barycentric coordinates
   };
   std::vector<Weld> welds_;
 
