@@ -83,4 +83,37 @@ TetMesh MakeBoxTetMesh(const Eigen::Vector3d& size_mm, const Eigen::Vector3i& ce
   return mesh;
 }
 
+SurfaceMesh MakeUvSphere(const Eigen::Vector3d& center_mm, double radius_mm, int rings,
+                         int segments) {
+  ARREG_CHECK_INPUT(std::isfinite(radius_mm) && radius_mm > 0, "", "radius_mm",
+                    "must be positive and finite, got ", radius_mm);
+  ARREG_CHECK_INPUT(rings >= 2, "", "rings", "must be at least 2, got ", rings);
+  ARREG_CHECK_INPUT(segments >= 3, "", "segments", "must be at least 3, got ", segments);
+  SurfaceMesh s;
+  s.vertices.resize(2 + (rings - 1) * segments, 3);
+  s.vertices.row(0) = (center_mm + Eigen::Vector3d(0, 0, radius_mm)).transpose();
+  s.vertices.row(1) = (center_mm - Eigen::Vector3d(0, 0, radius_mm)).transpose();
+  const auto ring = [&](int i, int j) { return 2 + (i - 1) * segments + j % segments; };
+  for (int i = 1; i < rings; ++i)
+    for (int j = 0; j < segments; ++j) {
+      const double theta = M_PI * i / rings, phi = 2 * M_PI * j / segments;
+      s.vertices.row(ring(i, j)) =
+          (center_mm + radius_mm * Eigen::Vector3d(std::sin(theta) * std::cos(phi),
+                                                   std::sin(theta) * std::sin(phi),
+                                                   std::cos(theta)))
+              .transpose();
+    }
+  s.faces.resize(2 * segments * (rings - 1), 3);
+  int f = 0;
+  for (int j = 0; j < segments; ++j) {
+    s.faces.row(f++) << 0, ring(1, j), ring(1, j + 1);
+    s.faces.row(f++) << 1, ring(rings - 1, j + 1), ring(rings - 1, j);
+    for (int i = 1; i + 1 < rings; ++i) {
+      s.faces.row(f++) << ring(i, j), ring(i + 1, j), ring(i + 1, j + 1);
+      s.faces.row(f++) << ring(i, j), ring(i + 1, j + 1), ring(i, j + 1);
+    }
+  }
+  return s;
+}
+
 }  // namespace arreg

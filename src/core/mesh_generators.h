@@ -1,5 +1,5 @@
-// Structured test meshes built in code: a box of hexahedral cells, each split
-// into conforming, positively oriented tetrahedra (tests, benchmarks, demos).
+// Test meshes built in code: a box of hexahedral cells, each split into conforming,
+// positively oriented tetrahedra, and a sphere surface (tests, benchmarks, demos).
 #pragma once
 
 #include <Eigen/Core>
@@ -26,5 +26,11 @@ enum class BoxTetSplit {
 // Throws arreg::Error when a size is not positive and finite or a cell count < 1.
 TetMesh MakeBoxTetMesh(const Eigen::Vector3d& size_mm, const Eigen::Vector3i& cells,
                        BoxTetSplit split = BoxTetSplit::kSix);
+
+// A closed latitude-longitude sphere: two poles and rings - 1 rings of `segments` vertices,
+// faces counter-clockwise seen from outside (an internal structure for tests and demos).
+// Throws arreg::Error when radius_mm is not positive and finite, rings < 2 or segments < 3.
+SurfaceMesh MakeUvSphere(const Eigen::Vector3d& center_mm, double radius_mm, int rings,
+                         int segments);
 
 }  // namespace arreg

@@ -203,6 +203,90 @@ TEST(CutHandler, ProgressiveCutOnAMovingModel) {
   }
 }
 
+// A closed internal structure (a ball inside the block) crossed by a crack grown over several
+// events: every event splits the structure as loaded along the whole crack and caps both
+// sides, so in the rest frame it stays a closed oriented manifold holding the ball's volume
+// and no triangle is deleted; at the end (a transection) its halves follow the block's two
+// pieces apart, each closed. With internal_caps off the triangles crossing S are deleted
+// (eq. 7.12) and the surface is left open.
+TEST(CutHandler, InternalStructureIsSplitAndCappedAlongTheCrack) {
+  const TetMesh block =
+      MakeBoxTetMesh(Eigen::Vector3d(40, 40, 20), Eigen::Vector3i(8, 8, 4), BoxTetSplit::kSix);
+  const SurfaceMesh ball = MakeUvSphere(Eigen::Vector3d(20, 20.6, 10), 6, 12, 24);
+  const double v_ball = EnclosedVolume(ball);
+  const std::vector<SurfaceMesh> original = {ball};
+  for (bool caps : {true, false}) {
+    SCOPED_TRACE(caps ? "caps" : "deletion");
+    Model model(block);
+    model.internal = original;
+    model.internal_rest = {ball.vertices};
+    model.internal_embedding = {mechanics::EmbeddedPoints::Embed(
+        ball.vertices, model.state.rest_positions(), model.state.tetrahedra())};
+    CutTargets targets = model.Targets();
+    targets.internal_original = &original;
+    CuttingStageOptions options;
+    options.keep_connected = false;
+    options.internal_caps = caps;
+    CutHandler handler(options, model.state);
+    std::vector<Eigen::Vector3d> points;
+    int cap_faces = 0, removed = 0;
+    for (int event = 0; event < 12; ++event) {
+      points.emplace_back(-4 + 4.0 * event, 20.3 + 0.4 * std::sin(event), 20);
+      if (points.size() < 2) continue;
+      std::vector<Eigen::Vector3d> line = points;
+      line.push_back(line.back() + 7.0 * (line.back() - line[line.size() - 2]).normalized());
+      const CutEvent ev = handler.Apply(event, line, line, Eigen::Vector3d(20, 20, 200), targets);
+      ASSERT_TRUE(ev.status == "cut" || ev.status == "no-crossing")
+          << "event " << event << ": " << ev.status << " " << ev.message;
+      cap_faces += ev.internal_cap_faces;
+      removed += ev.internal_triangles_removed;
+      SurfaceMesh at_rest = model.internal[0];
+      at_rest.vertices = model.internal_embedding[0].Positions(model.state.rest_positions(),
+                                                               model.state.tetrahedra());
+      ASSERT_LT((at_rest.vertices - model.internal_rest[0]).cwiseAbs().maxCoeff(), 1e-9);
+      if (!caps) continue;
+      ASSERT_TRUE(AnalyzeSurface(at_rest).closed_oriented_manifold()) << "event " << event;
+      EXPECT_NEAR(EnclosedVolume(at_rest), v_ball, 1e-9 * v_ball) << "event " << event;
+    }
+    // The block's piece on the far side of the crack moves 15 mm away.
+    int pieces = 0;
+    const TetMesh rest = model.state.RestMesh();
+    const Eigen::VectorXi piece = ConnectedComponents(rest, Adjacency::kVertex, &pieces);
+    ASSERT_EQ(pieces, 2);
+    RowMatX3d moved = rest.vertices;
+    for (int t = 0; t < rest.num_tetrahedra(); ++t)
+      for (int k = 0; k < 4; ++k)
+        if (piece(t) == piece(0))
+          moved(rest.tetrahedra(t, k), 1) = rest.vertices(rest.tetrahedra(t, k), 1) + 15;
+    SurfaceMesh opened = model.internal[0];
+    opened.vertices = model.internal_embedding[0].Positions(moved, rest.tetrahedra);
+    if (caps) {
+      EXPECT_EQ(removed, 0);
+      EXPECT_GT(cap_faces, 0);
+      int parts = 0;
+      const Eigen::VectorXi part = ConnectedComponents(opened, Adjacency::kVertex, &parts);
+      ASSERT_EQ(parts, 2);
+      double total = 0;
+      for (int k = 0; k < 2; ++k) {
+        SurfaceMesh half = opened;
+        std::vector<int> kept;
+        for (int f = 0; f < opened.num_faces(); ++f)
+          if (part(f) == k) kept.push_back(f);
+        half.faces.resize(static_cast<int>(kept.size()), 3);
+        for (size_t f = 0; f < kept.size(); ++f) half.faces.row(f) = opened.faces.row(kept[f]);
+        EXPECT_TRUE(AnalyzeSurface(half).closed_oriented_manifold());
+        EXPECT_GT(EnclosedVolume(half), 0.3 * v_ball);
+        total += EnclosedVolume(half);
+      }
+      EXPECT_NEAR(total, v_ball, 1e-9 * v_ball);
+    } else {
+      EXPECT_EQ(cap_faces, 0);
+      EXPECT_GT(removed, 0);
+      EXPECT_FALSE(AnalyzeSurface(opened).closed());
+    }
+  }
+}
+
 // A crack grown across a block while the model shears differently between events, as the lips
 // of a tear move: in the rest configuration each event cuts the whole polyline there, S of the
 // applied part is the surface cut before, and the crack runs on through the block (two pieces

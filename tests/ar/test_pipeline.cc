@@ -288,6 +288,12 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_DOUBLE_EQ(p.cutting.detector.probe_outlier_factor, 15.0);
   scene.cutting = {{"probe_outlier_factor", -1.0}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  // Session 9: internal structures split and capped, or their crossing triangles deleted.
+  EXPECT_TRUE(o.cutting.internal_caps);
+  scene.cutting = {{"internal_caps", false}};
+  EXPECT_FALSE(ReadPipelineOptions(scene).cutting.internal_caps);
+  scene.cutting = {{"internal_caps", "yes"}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
 }
 
 TEST(Overlay, DrawsOnlyOverTheOrganAndBlendsByOpacity) {

@@ -210,6 +210,27 @@ TEST(MeshGenerators, RejectsBadArguments) {
   EXPECT_THROW(MakeBoxTetMesh(Eigen::Vector3d(1, 0, 1), Eigen::Vector3i(1, 1, 1)), Error);
   EXPECT_THROW(MakeBoxTetMesh(Eigen::Vector3d(1, NAN, 1), Eigen::Vector3i(1, 1, 1)), Error);
   EXPECT_THROW(MakeBoxTetMesh(Eigen::Vector3d(1, 1, 1), Eigen::Vector3i(1, 0, 1)), Error);
+  EXPECT_THROW(MakeUvSphere(Eigen::Vector3d::Zero(), 0, 4, 8), Error);
+  EXPECT_THROW(MakeUvSphere(Eigen::Vector3d::Zero(), 1, 1, 8), Error);
+  EXPECT_THROW(MakeUvSphere(Eigen::Vector3d::Zero(), 1, 4, 2), Error);
+}
+
+// The sphere is a closed oriented manifold of genus 0 whose volume converges to 4/3 pi r^3
+// from below as it is refined.
+TEST(MeshGenerators, UvSphereIsAClosedSphere) {
+  const double exact = 4.0 / 3.0 * M_PI * 8.0;
+  double previous = 0;
+  for (int rings : {6, 12, 24, 48}) {
+    const SurfaceMesh s = MakeUvSphere(Eigen::Vector3d(1, 2, 3), 2.0, rings, 2 * rings);
+    const SurfaceTopology t = AnalyzeSurface(s);
+    EXPECT_TRUE(t.closed_oriented_manifold());
+    EXPECT_EQ(t.euler_characteristic, 2);
+    const double v = EnclosedVolume(s);
+    EXPECT_LT(v, exact);
+    EXPECT_GT(v, previous);
+    previous = v;
+  }
+  EXPECT_NEAR(previous, exact, 0.005 * exact);
 }
 
 TEST(MeshGenerators, FiveSplitIsConforming) {

@@ -91,10 +91,12 @@ TEST_P(EndToEndCut, RegistrationWithAndWithoutTopology) {
   EXPECT_GE(a.dice_final - b.dice_final, c.min_dice_gain);
   if (c.hausdorff_lower) {
     ASSERT_TRUE(a.internal.has_value() && b.internal.has_value());
-    EXPECT_LT(a.internal->mean_model_to_gt + a.internal->mean_gt_to_model,
-              b.internal->mean_model_to_gt + b.internal->mean_gt_to_model);
-    EXPECT_LT(a.surface->mean_model_to_gt + a.surface->mean_gt_to_model,
-              b.surface->mean_model_to_gt + b.surface->mean_gt_to_model);
+    // Each direction on its own: since the cut structure is capped (session 9), the truth's
+    // cut faces find the model's caps, not the rim of a hole.
+    EXPECT_LT(a.internal->mean_model_to_gt, b.internal->mean_model_to_gt);
+    EXPECT_LT(a.internal->mean_gt_to_model, b.internal->mean_gt_to_model);
+    EXPECT_LT(a.surface->mean_model_to_gt, b.surface->mean_model_to_gt);
+    EXPECT_LT(a.surface->mean_gt_to_model, b.surface->mean_gt_to_model);
   }
 }
 

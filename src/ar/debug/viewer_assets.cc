@@ -298,7 +298,9 @@ const char kViewerJs[] = R"JS('use strict';
     }
     rec.cut_events.forEach((e) => rows.push(['cut event', e.status +
       (e.status === 'cut' ? ' (' + e.configuration + ', depth ' + e.depth_fraction + ', +' + e.new_vertices + ' V' +
-        (e.welded_vertices ? ', ' + e.welded_vertices + ' V of debris welded' : '') + ')' : '') +
+        (e.welded_vertices ? ', ' + e.welded_vertices + ' V of debris welded' : '') +
+        (e.internal_cap_faces ? ', ' + e.internal_cap_faces + ' internal cap faces' : '') +
+        (e.internal_triangles_removed ? ', ' + e.internal_triangles_removed + ' internal faces deleted' : '') + ')' : '') +
       (e.message ? ': ' + e.message : '')]));
     if (rec.model) rows.push(['model V / T', rec.model.vertices + ' / ' + rec.model.tetrahedra]);
     for (const k of Object.keys(rec.ms)) rows.push([k + ' [ms]', rec.ms[k]]);

@@ -9,6 +9,7 @@
 #include "cutting/cut_extrusion.h"
 #include "cutting/cut_surface.h"
 #include "cutting/mechanics_update.h"
+#include "cutting/structure_split.h"
 
 namespace arreg::pipeline {
 
@@ -61,6 +62,10 @@ SurfaceMesh CutHandler::NewPart(const std::vector<Eigen::Vector3d>& polyline_mm,
 }
 
 namespace {
+
+// Vertices of internal structures on the crack are embedded this far off it (x the mean rest
+// edge length): far beyond the embedding's inside tolerance, far below any element's size.
+constexpr double kCrackOffsetFraction = 1e-4;
 
 // Depths of S behind the polyline tried by CuttingStageOptions::keep_connected, as fractions
 // of the extent that covers the model.
@@ -271,7 +276,12 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
       // Internal triangles and springs are tested against S in the configuration it was cut
       // in: in the rest one the lips have not moved apart, and a spring's side is its rest one.
       const RowMatX3d& after = in_rest ? state.rest_positions() : state.positions();
+      const bool split = options_.internal_caps && t.internal_original && !internal.empty();
+      const TetMesh rest = split ? state.RestMesh() : TetMesh();
+      const SurfaceMesh crack = split ? cutting::CrackSurface(rest) : SurfaceMesh();
       for (size_t k = 0; k < internal.size(); ++k) {
+        if (split && SplitInternal((*t.internal_original)[k], crack, rest, state, k, t, &ev))
+          continue;
         cutting::ReembedAfterCut(change, new_elements, state, (*t.internal_rest_mm)[k],
                                  &(*t.internal_embedding)[k]);
         const RowMatX3d points = (*t.internal_embedding)[k].Positions(after, state.tetrahedra());
@@ -308,6 +318,29 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
     ARREG_LOG_WARNING("run: frame ", frame, ": cut not applied: ", e.what());
   }
   return ev;
+}
+
+bool CutHandler::SplitInternal(const SurfaceMesh& original, const SurfaceMesh& crack,
+                               const TetMesh& rest, const mechanics::MechanicalState& state,
+                               size_t k, const CutTargets& t, CutEvent* ev) const {
+  try {
+    // The crack is rebuilt from the whole cut mesh, so the structure as loaded is split at
+    // every event; a vertex on the crack is placed a hair off it, towards its side.
+    const cutting::SplitStructure split = cutting::SplitAlongCrack(
+        original, crack, kCrackOffsetFraction * mesh_->mean_rest_edge_length());
+    (*t.internal_embedding)[k] = cutting::EmbedSplitStructure(split, rest);
+    (*t.internal_rest_mm)[k] = split.surface.vertices;
+    (*t.internal)[k].faces = split.surface.faces;
+    (*t.internal_embedding)[k].Positions(state.positions(), state.tetrahedra(),
+                                         &(*t.internal)[k].vertices);
+    ev->internal_cap_faces += split.cap_faces;
+    return true;
+  } catch (const Error& e) {
+    ARREG_LOG_WARNING(
+        "run: frame ", ev->frame, ": internal structure ", k,
+        " not split along the crack (its triangles crossing S are deleted): ", e.what());
+    return false;
+  }
 }
 
 int CutHandler::WeldDebris(const Pieces& pieces, mechanics::MechanicalState* state) {

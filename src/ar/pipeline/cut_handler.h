@@ -24,10 +24,15 @@ struct CutTargets {
   std::vector<FeatureView>* features = nullptr;  // one per feature row
   // (#features x 3) frame-0 attachment points [mm], in the rest frame of `state`.
   const RowMatX3d* features_rest_mm = nullptr;
-  mechanics::EmbeddedPoints* feature_embedding = nullptr;    // one point per feature row
-  std::vector<SurfaceMesh>* internal = nullptr;              // faces lose triangles crossing S
-  const std::vector<RowMatX3d>* internal_rest_mm = nullptr;  // rest vertices per structure
+  mechanics::EmbeddedPoints* feature_embedding = nullptr;  // one point per feature row
+  // Internal structures: split along the crack or their triangles crossing S deleted
+  // (CuttingStageOptions::internal_caps), with their rest vertices and embedding.
+  std::vector<SurfaceMesh>* internal = nullptr;
+  std::vector<RowMatX3d>* internal_rest_mm = nullptr;  // rest vertices per structure
   std::vector<mechanics::EmbeddedPoints>* internal_embedding = nullptr;
+  // The structures as loaded, in the rest frame: each event splits them anew along the whole
+  // crack. Without them (nullptr) triangles crossing S are deleted.
+  const std::vector<SurfaceMesh>* internal_original = nullptr;
 };
 
 // Keeps one cuttable topology (cutting::CuttableMesh, numbered like the mechanical state)
@@ -41,8 +46,9 @@ class CutHandler {
   ~CutHandler();
 
   // One detected cut in frame `frame`: extrudes the polyline along the rays from `eye_mm` into
-  // S, cuts the model, applies the change to the mechanical state, re-embeds features and
-  // internal structures, deletes internal triangles crossing S (eq. 7.12) and removes the
+  // S, cuts the model, applies the change to the mechanical state, re-embeds features, splits
+  // and caps the internal structures along the crack (or deletes their triangles crossing S,
+  // eq. 7.12; options.internal_caps) and removes the
   // springs within options.spring_margin_mm of S. `polyline_mm` is the detector's (extended)
   // polyline in this frame (world, mm), `rest_polyline_mm` the same points at frame 0, where
   // the model is in its rest configuration (options.cut_configuration says which one is cut).
@@ -71,6 +77,13 @@ class CutHandler {
   // The strips of the polyline's segments that have a point not applied before.
   SurfaceMesh NewPart(const std::vector<Eigen::Vector3d>& polyline_mm,
                       const Eigen::Vector3d& eye_mm, const cutting::CutExtrusionOptions& ext) const;
+
+  // Splits internal structure k (`original`, as loaded) along `crack` (of `rest`, the state's
+  // rest mesh) and replaces its faces, rest vertices, embedding and positions in `t`; false
+  // (with a warning, nothing changed) when the split fails.
+  bool SplitInternal(const SurfaceMesh& original, const SurfaceMesh& crack, const TetMesh& rest,
+                     const mechanics::MechanicalState& state, size_t k, const CutTargets& t,
+                     CutEvent* ev) const;
 
   // The model's pieces (elements connected through vertices) and their rest volumes; defined
   // in the .cc.

@@ -48,10 +48,12 @@ struct CutEvent {
   std::string status;   // "cut", "no-crossing", "rejected", "failed"
   std::string message;  // why, for rejected/failed
   int polyline_points = 0;
-  int new_tetrahedra = 0;   // #T after - #T before
-  int new_vertices = 0;     // inserted + duplicated
-  int springs_removed = 0;  // within the margin of S
-  int internal_triangles_removed = 0;
+  int new_tetrahedra = 0;              // #T after - #T before
+  int new_vertices = 0;                // inserted + duplicated
+  int springs_removed = 0;             // within the margin of S
+  int internal_triangles_removed = 0;  // deleted (CuttingStageOptions::internal_caps false)
+  // Faces the internal structures gained on the crack: caps, both sides (internal_caps).
+  int internal_cap_faces = 0;
   // Depth of the applied S behind the polyline, as a fraction of the extent that covers the
   // model (below 1 when CuttingStageOptions::keep_connected cut again shallower); 0 if none.
   double depth_fraction = 0.0;

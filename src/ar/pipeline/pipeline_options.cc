@@ -200,6 +200,7 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("on_surface_tolerance", &o->on_surface_tolerance);
   r.Optional("keep_connected", &o->keep_connected);
   r.OptionalChoice("cut_configuration", {"rest", "current"}, &o->cut_configuration);
+  r.Optional("internal_caps", &o->internal_caps);
   r.Finish();
 }
 
@@ -307,7 +308,8 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"snap_epsilon", o.cutting.snap_epsilon},
       {"on_surface_tolerance", o.cutting.on_surface_tolerance},
       {"keep_connected", o.cutting.keep_connected},
-      {"cut_configuration", o.cutting.cut_configuration}};
+      {"cut_configuration", o.cutting.cut_configuration},
+      {"internal_caps", o.cutting.internal_caps}};
   j["render"] = {{"enabled", o.render.enabled},
                  {"supersampling", o.render.supersampling},
                  {"organ_opacity", o.render.organ_opacity},

@@ -91,6 +91,12 @@ struct CuttingStageOptions {
   // "current" extrudes this frame's polyline and cuts only its new segments (the thesis; the
   // strips of successive frames meet along lines that stay sewn, see docs/cutting.md).
   std::string cut_configuration = "rest";
+  // Internal structures S cuts: true (default) splits each surface along the model's crack and,
+  // when it is closed, closes each side again with a cap on the crack (cutting::
+  // SplitAlongCrack), so a cut tumour is two closed pieces that follow their sides; false
+  // deletes the triangles crossing S (thesis eq. 7.12), which leaves a hole where the crack
+  // opens.
+  bool internal_caps = true;
   void Check() const;
 };
 

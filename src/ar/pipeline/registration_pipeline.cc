@@ -54,6 +54,7 @@ nlohmann::json CutEvent::ToJson() const {
           {"new_vertices", new_vertices},
           {"springs_removed", springs_removed},
           {"internal_triangles_removed", internal_triangles_removed},
+          {"internal_cap_faces", internal_cap_faces},
           {"depth_fraction", depth_fraction},
           {"configuration", configuration},
           {"welded_vertices", welded_vertices}};
@@ -200,7 +201,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   SurfaceMesh surface = ExtractBoundary(state.CurrentMesh());
   const RowMatX3i frame0_faces = surface.faces;  // lifting keeps frame-0 connectivity
   std::vector<SurfaceMesh> internal = impl_->model.internal;
-  const std::vector<RowMatX3d> internal_rest = [&] {
+  std::vector<RowMatX3d> internal_rest = [&] {
     std::vector<RowMatX3d> r;
     for (const SurfaceMesh& m : internal) r.push_back(m.vertices);
     return r;
@@ -266,9 +267,9 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   // Cut detection over the attached features (detector ids = feature rows).
   std::optional<cutting::CutDetector> detector;
   std::optional<CutHandler> cut_handler;
-  const CutTargets cut_targets{&state,         &springs,           &features,
-                               &attach_points, &feature_embedding, &internal,
-                               &internal_rest, &internal_embedding};
+  const CutTargets cut_targets{
+      &state,    &springs,       &features,           &attach_points,        &feature_embedding,
+      &internal, &internal_rest, &internal_embedding, &impl_->model.internal};
   cutting::DetectionResult detection;
   const bool topology = o.cutting.enabled;
   if (topology) {

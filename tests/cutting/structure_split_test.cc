@@ -1,0 +1,198 @@
+#include "cutting/structure_split.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "core/mesh_generators.h"
+#include "core/mesh_ops.h"
+#include "cutting/tet_cutter.h"
+
+namespace arreg::cutting {
+namespace {
+
+// The faces of `s` with label `label` (per face) as a surface on the same vertices.
+SurfaceMesh Part(const SurfaceMesh& s, const Eigen::VectorXi& labels, int label) {
+  SurfaceMesh out;
+  out.vertices = s.vertices;
+  std::vector<int> kept;
+  for (int f = 0; f < s.num_faces(); ++f)
+    if (labels(f) == label) kept.push_back(f);
+  out.faces.resize(static_cast<int>(kept.size()), 3);
+  for (size_t k = 0; k < kept.size(); ++k) out.faces.row(static_cast<int>(k)) = s.faces.row(kept[k]);
+  return out;
+}
+
+// Volume of the part of a ball of radius r on the far side of a plane at signed distance d
+// from its centre (the spherical cap of height r - d).
+double CapVolume(double r, double d) {
+  const double h = r - d;
+  return M_PI * h * h * (3 * r - h) / 3;
+}
+
+struct CutBox {
+  TetMesh rest;
+  double mean_edge_mm = 0;
+};
+
+CutBox CutBlock(const CutSurface& s) {
+  const TetMesh box =
+      MakeBoxTetMesh(Eigen::Vector3d(40, 30, 30), Eigen::Vector3i(5, 4, 4), BoxTetSplit::kSix);
+  CuttableMesh mesh(box);
+  CutOptions opt;
+  opt.snap_epsilon = 0;
+  CutChange change;
+  const CutSummary summary = mesh.Cut(s, opt, &change);
+  EXPECT_EQ(summary.status, CutStatus::kCut) << summary.message;
+  return {mesh.RestMesh(), mesh.mean_rest_edge_length()};
+}
+
+// A plane through the whole block cuts a ball inside into two closed pieces: the split surface
+// is a closed oriented manifold with the ball's volume, and when the block's two pieces move
+// apart, the structure's pieces move with them and hold the volumes of the two spherical caps.
+TEST(StructureSplit, ThroughCutSeparatesAClosedStructureIntoTwoClosedPieces) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int trial = 0; trial < 12; ++trial) {
+    const Eigen::Vector3d center(20 + 3 * u(rng), 15 + 2 * u(rng), 15 + 2 * u(rng));
+    const double radius = 8;
+    const SurfaceMesh ball = MakeUvSphere(center, radius, 14, 28);
+    const Eigen::Vector3d n = Eigen::Vector3d(1, 0.4 * u(rng), 0.4 * u(rng)).normalized();
+    const Eigen::Vector3d p = center + 5 * u(rng) * n + Eigen::Vector3d(0, u(rng), u(rng));
+    const CutBox block = CutBlock(MakePlaneSurface(p, n, 100, 100, {0, 0, 1}));
+    const SplitStructure split =
+        SplitAlongCrack(ball, CrackSurface(block.rest), 1e-4 * block.mean_edge_mm);
+    SCOPED_TRACE(testing::Message() << "trial " << trial);
+    EXPECT_TRUE(split.capped);
+    EXPECT_GT(split.cap_faces, 0);
+    EXPECT_GT(split.added_faces, 0);
+    ASSERT_TRUE(AnalyzeSurface(split.surface).closed_oriented_manifold());
+    const double volume = EnclosedVolume(ball);
+    EXPECT_NEAR(EnclosedVolume(split.surface), volume, 1e-9 * volume);
+
+    const mechanics::EmbeddedPoints e = EmbedSplitStructure(split, block.rest);
+    const RowMatX3d at_rest = e.Positions(block.rest.vertices, block.rest.tetrahedra);
+    EXPECT_LT((at_rest - split.surface.vertices).cwiseAbs().maxCoeff(), 1e-9);
+
+    // Moves the block's piece in front of the plane away along n.
+    int num_pieces = 0;
+    ConnectedComponents(block.rest, Adjacency::kVertex, &num_pieces);
+    ASSERT_EQ(num_pieces, 2);
+    RowMatX3d moved = block.rest.vertices;
+    for (int t = 0; t < block.rest.num_tetrahedra(); ++t) {
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      for (int k = 0; k < 4; ++k) c += block.rest.vertices.row(block.rest.tetrahedra(t, k));
+      if ((c / 4 - p).dot(n) < 0) continue;
+      for (int k = 0; k < 4; ++k)
+        moved.row(block.rest.tetrahedra(t, k)) =
+            block.rest.vertices.row(block.rest.tetrahedra(t, k)) + 20 * n.transpose();
+    }
+    SurfaceMesh opened = split.surface;
+    opened.vertices = e.Positions(moved, block.rest.tetrahedra);
+    int num_parts = 0;
+    const Eigen::VectorXi part = ConnectedComponents(opened, Adjacency::kVertex, &num_parts);
+    ASSERT_EQ(num_parts, 2);
+    double front_volume = 0, total = 0;
+    for (int k = 0; k < 2; ++k) {
+      const SurfaceMesh piece_k = Part(opened, part, k);
+      EXPECT_TRUE(AnalyzeSurface(piece_k).closed_oriented_manifold());
+      const double v = EnclosedVolume(piece_k);
+      EXPECT_GT(v, 0);
+      total += v;
+      const Eigen::Vector3d first = piece_k.vertices.row(piece_k.faces(0, 0)).transpose();
+      if ((first - p).dot(n) > 10) front_volume = v;  // moved by 20 along n
+    }
+    EXPECT_NEAR(total, volume, 1e-9 * volume);
+    // The faceted ball is a little smaller than the ball: compare fractions.
+    const double d = (p - center).dot(n);
+    EXPECT_NEAR(front_volume / volume,
+                CapVolume(radius, d) / (4 * M_PI * radius * radius * radius / 3), 0.02);
+  }
+}
+
+// A cut that stops inside the structure leaves one closed surface: the two caps meet along
+// the crack's front, and every vertex placed off the crack is carried by an element of its
+// own side.
+TEST(StructureSplit, PartialCutOpensAPocketClosedAlongTheFront) {
+  const Eigen::Vector3d center(20, 15, 15);
+  const SurfaceMesh ball = MakeUvSphere(center, 9, 14, 28);
+  const Eigen::Vector3d n = Eigen::Vector3d(1, 0.15, 0.05).normalized();
+  // S covers z from 14 up, through the ball's centre.
+  const Eigen::Vector3d p = center + Eigen::Vector3d(0.3, 0, 16);
+  const CutBox block = CutBlock(MakePlaneSurface(p, n, 100, 17, {0, 1, 0}));
+  const SplitStructure split =
+      SplitAlongCrack(ball, CrackSurface(block.rest), 1e-4 * block.mean_edge_mm);
+  EXPECT_TRUE(split.capped);
+  EXPECT_GT(split.cap_faces, 0);
+  const SurfaceTopology topology = AnalyzeSurface(split.surface);
+  EXPECT_TRUE(topology.closed_oriented_manifold());
+  int num_parts = 0;
+  ConnectedComponents(split.surface, Adjacency::kVertex, &num_parts);
+  EXPECT_EQ(num_parts, 1);
+  const double volume = EnclosedVolume(ball);
+  EXPECT_NEAR(EnclosedVolume(split.surface), volume, 1e-9 * volume);
+  const mechanics::EmbeddedPoints e = EmbedSplitStructure(split, block.rest);
+  int off_crack = 0;
+  for (int i = 0; i < split.surface.num_vertices(); ++i) {
+    const Eigen::Vector3d offset =
+        (split.embed_at_mm.row(i) - split.surface.vertices.row(i)).transpose();
+    if (offset.isZero(0)) continue;
+    ++off_crack;
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 4; ++k) c += block.rest.vertices.row(block.rest.tetrahedra(e[i].tet, k));
+    const double element_side = (c / 4 - p).dot(n), vertex_side = offset.dot(n);
+    EXPECT_GT(element_side * vertex_side, 0) << "vertex " << i;
+    EXPECT_GE(e[i].barycentric.minCoeff(), -1e-9) << "vertex " << i;
+  }
+  EXPECT_GT(off_crack, 0);
+}
+
+// An open structure (a bowl) is split but not capped; a structure the crack does not reach
+// comes back unchanged.
+TEST(StructureSplit, OpenOrUntouchedStructures) {
+  const Eigen::Vector3d center(20, 15, 15);
+  const SurfaceMesh ball = MakeUvSphere(center, 8, 14, 28);
+  Eigen::VectorXi lower(ball.num_faces());
+  for (int f = 0; f < ball.num_faces(); ++f) {
+    double z = 0;
+    for (int k = 0; k < 3; ++k) z += ball.vertices(ball.faces(f, k), 2);
+    lower(f) = z / 3 < center.z() ? 1 : 0;
+  }
+  const SurfaceMesh bowl = Part(ball, lower, 1);
+  const CutBox block = CutBlock(MakePlaneSurface({20.3, 15, 15}, {1, 0, 0}, 100, 100, {0, 1, 0}));
+  const SurfaceMesh crack = CrackSurface(block.rest);
+  const double offset = 1e-4 * block.mean_edge_mm;
+  const SplitStructure open = SplitAlongCrack(bowl, crack, offset);
+  EXPECT_FALSE(open.capped);
+  EXPECT_EQ(open.cap_faces, 0);
+  EXPECT_GT(open.added_faces, 0);
+  EXPECT_GT(AnalyzeSurface(open.surface).num_boundary_edges,
+            AnalyzeSurface(bowl).num_boundary_edges);
+
+  const SurfaceMesh aside = MakeUvSphere({8, 15, 15}, 4, 8, 16);
+  const SplitStructure untouched = SplitAlongCrack(aside, crack, offset);
+  EXPECT_EQ(untouched.added_faces, 0);
+  EXPECT_EQ(untouched.cap_faces, 0);
+  EXPECT_EQ(untouched.surface.faces, aside.faces);
+  EXPECT_EQ(untouched.surface.vertices, aside.vertices);
+}
+
+// The crack of a block cut through by the plane x = 20.3 is that plane's section of the block
+// (30 x 30 mm); an uncut mesh has none.
+TEST(StructureSplit, CrackSurfaceIsTheCutSection) {
+  const TetMesh box =
+      MakeBoxTetMesh(Eigen::Vector3d(40, 30, 30), Eigen::Vector3i(5, 4, 4), BoxTetSplit::kSix);
+  EXPECT_EQ(CrackSurface(box).num_faces(), 0);
+  const CutBox block = CutBlock(MakePlaneSurface({20.3, 15, 15}, {1, 0, 0}, 100, 100, {0, 1, 0}));
+  const SurfaceMesh crack = CrackSurface(block.rest);
+  EXPECT_NEAR(SurfaceArea(crack), 900, 1e-9 * 900);
+  for (int f = 0; f < crack.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(crack.vertices(crack.faces(f, k), 0), 20.3, 1e-9);
+  const SurfaceTopology topology = AnalyzeSurface(crack);
+  EXPECT_EQ(topology.num_misoriented_edges, 0);
+  EXPECT_EQ(topology.num_nonmanifold_edges, 0);
+}
+
+}  // namespace
+}  // namespace arreg::cutting
