@@ -5,6 +5,8 @@
 #include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <array>
 #include <map>
@@ -132,6 +134,14 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
   out.surface.faces = structure.faces;
   out.embed_at_mm = structure.vertices;
   if (crack.num_faces() == 0 || structure.num_faces() == 0) return out;
+  // A crack whose bounding box misses the structure's neither crosses it nor lies inside it.
+  Eigen::AlignedBox3d crack_box, structure_box;
+  for (int f = 0; f < crack.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) crack_box.extend(crack.vertices.row(crack.faces(f, k)).transpose());
+  for (int f = 0; f < structure.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k)
+      structure_box.extend(structure.vertices.row(structure.faces(f, k)).transpose());
+  if (!crack_box.intersects(structure_box)) return out;
 
   Mesh a = ToMesh(structure.vertices, structure.faces, "internal structure");
   Mesh b = ToMesh(crack.vertices, crack.faces, "crack surface");
@@ -160,13 +170,13 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
     if (!a.is_isolated(v) && on_crack.count(KeyOf(a.point(v)))) ++copies[KeyOf(a.point(v))];
   const int nv = static_cast<int>(a.number_of_vertices());
   std::vector<Eigen::Vector3d> positions, embed_at;
-  std::map<VertexIndex, int> index;
   std::map<std::pair<Key, int>, int> by_side;  // (position, side) -> output vertex
   positions.reserve(nv);
   for (VertexIndex v : a.vertices()) {
     const Eigen::Vector3d p = ToEigen(a.point(v));
-    const int i = static_cast<int>(positions.size());
-    index[v] = i;
+    // The split adds vertices and removes none: output vertex i is the mesh's vertex i.
+    const int i = static_cast<int>(v.idx());
+    ARREG_ASSERT(i == static_cast<int>(positions.size()), "vertex ", i);
     positions.push_back(p);
     embed_at.push_back(p);
     const Key key = KeyOf(p);
@@ -196,7 +206,8 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
   for (FaceIndex f : a.faces()) {
     std::array<int, 3> face;
     int k = 0;
-    for (VertexIndex w : a.vertices_around_face(a.halfedge(f))) face[k++] = index[w];
+    for (VertexIndex w : a.vertices_around_face(a.halfedge(f)))
+      face[k++] = static_cast<int>(w.idx());
     faces.push_back(face);
   }
 

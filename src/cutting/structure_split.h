@@ -23,8 +23,8 @@ struct SplitStructure {
   // element of that side; any other vertex is its own position.
   RowMatX3d embed_at_mm;
   int added_faces = 0;  // faces the subdivision along the crack added to the input's
-  int cap_faces = 0;       // faces added on the crack (both sides)
-  bool capped = false;     // the input was closed, so each side was closed by a cap
+  int cap_faces = 0;    // faces added on the crack (both sides)
+  bool capped = false;  // the input was closed, so each side was closed by a cap
 };
 
 // Splits `structure` (rest positions, triangles oriented outward, no self-intersection) along

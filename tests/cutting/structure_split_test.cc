@@ -20,7 +20,8 @@ SurfaceMesh Part(const SurfaceMesh& s, const Eigen::VectorXi& labels, int label)
   for (int f = 0; f < s.num_faces(); ++f)
     if (labels(f) == label) kept.push_back(f);
   out.faces.resize(static_cast<int>(kept.size()), 3);
-  for (size_t k = 0; k < kept.size(); ++k) out.faces.row(static_cast<int>(k)) = s.faces.row(kept[k]);
+  for (size_t k = 0; k < kept.size(); ++k)
+    out.faces.row(static_cast<int>(k)) = s.faces.row(kept[k]);
   return out;
 }
 
