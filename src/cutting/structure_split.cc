@@ -1,7 +1,9 @@
 #include "cutting/structure_split.h"
 
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Exact_predicates_exact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/clip.h>
+#include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
+#include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
 #include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
 
@@ -19,18 +21,37 @@
 namespace arreg::cutting {
 namespace {
 
-using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+// Exact constructions: intersection points a hair apart (a crack vertex within 1e-11 mm of the
+// structure, as where two meshes of one shape share sample points) stay distinct points.
+using Kernel = CGAL::Exact_predicates_exact_constructions_kernel;
 using Point = Kernel::Point_3;
 using Mesh = CGAL::Surface_mesh<Point>;
 using VertexIndex = Mesh::Vertex_index;
 using FaceIndex = Mesh::Face_index;
 namespace PMP = CGAL::Polygon_mesh_processing;
 
-// Exact coordinates: the corefinement puts the same point into both meshes.
+// Rest positions of the tet mesh, compared exactly (the two lips of a crack share them).
 using Key = std::array<double, 3>;
-Key KeyOf(const Point& p) { return {p.x(), p.y(), p.z()}; }
 Key KeyOf(const Eigen::Vector3d& p) { return {p.x(), p.y(), p.z()}; }
-Eigen::Vector3d ToEigen(const Point& p) { return {p.x(), p.y(), p.z()}; }
+Eigen::Vector3d ToEigen(const Point& p) {
+  return {CGAL::to_double(p.x()), CGAL::to_double(p.y()), CGAL::to_double(p.z())};
+}
+
+// Numbers the distinct exact points: the corefinement puts the same point into both meshes.
+class PointIds {
+ public:
+  int operator()(const Point& p) {
+    return ids_.emplace(p, static_cast<int>(ids_.size())).first->second;
+  }
+
+ private:
+  struct Less {
+    bool operator()(const Point& a, const Point& b) const {
+      return CGAL::compare_xyz(a, b) == CGAL::SMALLER;
+    }
+  };
+  std::map<Point, int, Less> ids_;
+};
 
 // `faces` (#F x 3 into `vertices`) as a CGAL mesh with the same vertex numbering; throws when a
 // face cannot be added (non-manifold or inconsistently oriented input).
@@ -44,6 +65,31 @@ Mesh ToMesh(const RowMatX3d& vertices, const RowMatX3i& faces, const char* what)
     ARREG_CHECK_INPUT(added != Mesh::null_face(), "", what, "face ", f,
                       " makes the surface non-manifold or inconsistently oriented");
   }
+  return m;
+}
+
+// The crack as a CGAL mesh. Where cracks meet along an edge or touch at a vertex (a curved S
+// folding through snapped vertices), the halfedge mesh cannot hold them as they are:
+// orient_polygon_soup duplicates the vertices there and keeps the sheets' orientations.
+Mesh CrackToMesh(const SurfaceMesh& crack) {
+  std::vector<Point> points;
+  std::vector<std::array<std::size_t, 3>> polygons;
+  std::vector<int> index(crack.vertices.rows(), -1);
+  for (int f = 0; f < crack.num_faces(); ++f) {
+    std::array<std::size_t, 3> polygon;
+    for (int k = 0; k < 3; ++k) {
+      const int v = crack.faces(f, k);
+      if (index[v] < 0) {
+        index[v] = static_cast<int>(points.size());
+        points.emplace_back(crack.vertices(v, 0), crack.vertices(v, 1), crack.vertices(v, 2));
+      }
+      polygon[k] = static_cast<std::size_t>(index[v]);
+    }
+    polygons.push_back(polygon);
+  }
+  PMP::orient_polygon_soup(points, polygons);
+  Mesh m;
+  PMP::polygon_soup_to_polygon_mesh(points, polygons, m);
   return m;
 }
 
@@ -144,7 +190,7 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
   if (!crack_box.intersects(structure_box)) return out;
 
   Mesh a = ToMesh(structure.vertices, structure.faces, "internal structure");
-  Mesh b = ToMesh(crack.vertices, crack.faces, "crack surface");
+  Mesh b = CrackToMesh(crack);
   const bool closed = CGAL::is_closed(a);
   const Mesh original = a;
   const int faces_before = static_cast<int>(a.number_of_faces());
@@ -158,50 +204,26 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
   out.added_faces = static_cast<int>(a.number_of_faces()) - faces_before;
 
   // Crack vertices by position, with their normals.
-  std::map<Key, VertexIndex> on_crack;
+  PointIds id_of;
+  std::map<int, VertexIndex> on_crack;
   for (VertexIndex v : b.vertices())
-    if (!b.is_isolated(v)) on_crack.emplace(KeyOf(b.point(v)), v);
+    if (!b.is_isolated(v)) on_crack.emplace(id_of(b.point(v)), v);
 
-  // The structure's vertices; a vertex on the crack that the split duplicated takes the side
-  // of its faces (+1: where the crack's normal points), one it did not is on the crack's
-  // front and serves both sides (0).
-  std::map<Key, int> copies;
-  for (VertexIndex v : a.vertices())
-    if (!a.is_isolated(v) && on_crack.count(KeyOf(a.point(v)))) ++copies[KeyOf(a.point(v))];
+  // The structure's vertices and faces (output vertex i is the split mesh's vertex i: the split
+  // adds vertices and removes none) and, per position on the crack, how many copies it has.
   const int nv = static_cast<int>(a.number_of_vertices());
   std::vector<Eigen::Vector3d> positions, embed_at;
-  std::map<std::pair<Key, int>, int> by_side;  // (position, side) -> output vertex
   positions.reserve(nv);
+  std::vector<int> key_of(nv);  // the vertex's point id
+  std::map<int, int> copies;
   for (VertexIndex v : a.vertices()) {
-    const Eigen::Vector3d p = ToEigen(a.point(v));
-    // The split adds vertices and removes none: output vertex i is the mesh's vertex i.
     const int i = static_cast<int>(v.idx());
     ARREG_ASSERT(i == static_cast<int>(positions.size()), "vertex ", i);
-    positions.push_back(p);
-    embed_at.push_back(p);
-    const Key key = KeyOf(p);
-    const auto c = on_crack.find(key);
-    if (c == on_crack.end() || a.is_isolated(v)) continue;
-    const Eigen::Vector3d n = VertexNormal(b, c->second).normalized();
-    int side = 0;
-    if (copies[key] > 1) {
-      double s = 0;
-      for (FaceIndex f : a.faces_around_target(a.halfedge(v))) {
-        if (f == Mesh::null_face()) continue;
-        Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-        for (VertexIndex w : a.vertices_around_face(a.halfedge(f))) centroid += ToEigen(a.point(w));
-        s += (centroid / 3 - p).dot(n);
-      }
-      side = s > 0 ? 1 : (s < 0 ? -1 : 0);
-    }
-    if (side == 0) {
-      by_side[{key, -1}] = i;
-      by_side[{key, 1}] = i;
-    } else {
-      by_side[{key, side}] = i;
-      embed_at.back() = p + side * offset_mm * n;
-    }
+    positions.push_back(ToEigen(a.point(v)));
+    key_of[i] = id_of(a.point(v));
+    if (!a.is_isolated(v) && on_crack.count(key_of[i])) ++copies[key_of[i]];
   }
+  embed_at = positions;
   std::vector<std::array<int, 3>> faces;
   for (FaceIndex f : a.faces()) {
     std::array<int, 3> face;
@@ -210,40 +232,153 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
       face[k++] = static_cast<int>(w.idx());
     faces.push_back(face);
   }
+  // (position, side) -> output vertex; side -1 is behind the crack's normal, +1 in front. A
+  // vertex on the crack the split did not duplicate (where the curve ends) serves both sides.
+  std::map<std::pair<int, int>, int> by_side;
+  for (int i = 0; i < nv; ++i) {
+    const auto c = copies.find(key_of[i]);
+    if (c == copies.end() || c->second != 1) continue;
+    by_side[{c->first, -1}] = i;
+    by_side[{c->first, 1}] = i;
+  }
+  std::vector<int> side_of(nv, 0);
 
   // Caps: the crack's faces inside the structure, once per side. The side behind the crack's
   // normal (-1) is closed by a cap facing along the normal, i.e. with the crack's orientation.
+  std::vector<std::array<VertexIndex, 3>> cap_faces;
   if (closed) {
     out.capped = true;
     const CGAL::Side_of_triangle_mesh<Mesh, Kernel> inside(original);
-    std::vector<FaceIndex> cap;
     for (FaceIndex f : b.faces()) {
-      Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-      for (VertexIndex w : b.vertices_around_face(b.halfedge(f))) centroid += ToEigen(b.point(w));
-      centroid /= 3;
-      if (inside(Point(centroid.x(), centroid.y(), centroid.z())) == CGAL::ON_BOUNDED_SIDE)
-        cap.push_back(f);
+      std::array<VertexIndex, 3> face;
+      int k = 0;
+      for (VertexIndex w : b.vertices_around_face(b.halfedge(f))) face[k++] = w;
+      // Exact: the corefined crack's faces are each inside or outside, however small.
+      const Point centroid = CGAL::centroid(b.point(face[0]), b.point(face[1]), b.point(face[2]));
+      if (inside(centroid) == CGAL::ON_BOUNDED_SIDE) cap_faces.push_back(face);
+    }
+    // Each side's cap meets the structure's copy of the curve that runs the other way: in a
+    // closed oriented surface every edge is traversed once in each direction. This pairs the
+    // copies with the sides exactly, where tiny faces of the corefinement along the curve would
+    // make a geometric side test guess.
+    std::map<std::pair<int, int>, int> uses;
+    for (const auto& face : faces)
+      for (int k = 0; k < 3; ++k) ++uses[std::minmax(face[k], face[(k + 1) % 3])];
+    std::map<std::pair<int, int>, std::pair<int, int>> open_edges;  // directed, by point ids
+    for (const auto& face : faces)
+      for (int k = 0; k < 3; ++k) {
+        const int u = face[k], w = face[(k + 1) % 3];
+        if (uses[std::minmax(u, w)] == 1 && copies.count(key_of[u]) && copies.count(key_of[w]))
+          open_edges[{key_of[u], key_of[w]}] = {u, w};
+      }
+    for (int side : {-1, 1})
+      for (const auto& face : cap_faces)
+        for (int k = 0; k < 3; ++k) {
+          VertexIndex from = face[k], to = face[(k + 1) % 3];
+          if (side == 1) std::swap(from, to);  // the front side's cap is reversed
+          const int p = id_of(b.point(from)), q = id_of(b.point(to));
+          const auto e = open_edges.find({q, p});
+          if (e == open_edges.end()) continue;
+          by_side[{q, side}] = e->second.first;
+          by_side[{p, side}] = e->second.second;
+          side_of[e->second.first] = side_of[e->second.second] = side;
+        }
+  }
+  // Copies on the crack are embedded a hair off it on their side; a copy no cap met (an open
+  // structure) takes the side its faces lie on.
+  for (VertexIndex v : a.vertices()) {
+    const int i = static_cast<int>(v.idx());
+    const int key = key_of[i];
+    const auto c = copies.find(key);
+    if (c == copies.end() || c->second == 1 || a.is_isolated(v)) continue;
+    const Eigen::Vector3d n = VertexNormal(b, on_crack.at(key)).normalized();
+    int side = side_of[i];
+    if (side == 0) {
+      double s = 0;
+      for (FaceIndex f : a.faces_around_target(a.halfedge(v))) {
+        if (f == Mesh::null_face()) continue;
+        Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+        for (VertexIndex w : a.vertices_around_face(a.halfedge(f))) centroid += ToEigen(a.point(w));
+        s += (centroid / 3 - positions[i]).dot(n);
+      }
+      side = s >= 0 ? 1 : -1;
+      by_side.emplace(std::make_pair(key, side), i);
+    }
+    embed_at[i] = positions[i] + side * offset_mm * n;
+  }
+
+  if (closed) {
+    // The cap's vertices: the crack's, plus midpoints of chords (below).
+    struct CapVertex {
+      Eigen::Vector3d p, n;  // position, unit normal of the crack
+      int key;               // point id (-1 for a chord's midpoint)
+      bool shared;           // one vertex for both sides
+    };
+    std::vector<CapVertex> vertices;
+    std::map<VertexIndex, int> of_crack_vertex;
+    std::vector<std::array<int, 3>> cap;
+    for (const auto& crack_face : cap_faces) {
+      std::array<int, 3> face;
+      for (int k = 0; k < 3; ++k) {
+        const VertexIndex w = crack_face[k];
+        auto [it, added] = of_crack_vertex.emplace(w, static_cast<int>(vertices.size()));
+        if (added) {
+          // Shared: where the crack ends inside the structure (its front, or the organ's
+          // surface when the structure reaches beyond it), or where the structure's split
+          // ends (a curve vertex serving both sides).
+          const int key = id_of(b.point(w));
+          const auto l = by_side.find({key, -1}), r = by_side.find({key, 1});
+          const bool shared = b.is_border(w) ||
+                              (l != by_side.end() && r != by_side.end() && l->second == r->second);
+          vertices.push_back({ToEigen(b.point(w)), VertexNormal(b, w).normalized(), key, shared});
+        }
+        face[k] = it->second;
+      }
+      cap.push_back(face);
+    }
+    // A chord (an edge inside the cap between two shared vertices) would become one edge of
+    // both caps, with four faces: it is split at its midpoint, which has a copy per side.
+    std::map<std::pair<int, int>, int> uses;
+    for (const auto& face : cap)
+      for (int k = 0; k < 3; ++k) {
+        const int u = face[k], w = face[(k + 1) % 3];
+        ++uses[{std::min(u, w), std::max(u, w)}];
+      }
+    for (const auto& [edge, count] : uses) {
+      if (count != 2 || !vertices[edge.first].shared || !vertices[edge.second].shared) continue;
+      const int m = static_cast<int>(vertices.size());
+      const CapVertex& u = vertices[edge.first];
+      const CapVertex& w = vertices[edge.second];
+      vertices.push_back({(u.p + w.p) / 2, (u.n + w.n).normalized(), -1, false});
+      for (size_t f = 0, n = cap.size(); f < n; ++f)
+        for (int k = 0; k < 3; ++k) {
+          const int a0 = cap[f][k], a1 = cap[f][(k + 1) % 3], a2 = cap[f][(k + 2) % 3];
+          if (std::min(a0, a1) != edge.first || std::max(a0, a1) != edge.second) continue;
+          cap[f] = {a0, m, a2};
+          cap.push_back({m, a1, a2});
+          break;
+        }
     }
     for (int side : {-1, 1}) {
-      for (FaceIndex f : cap) {
+      std::vector<int> index(vertices.size(), -1);
+      for (const auto& cap_face : cap) {
         std::array<int, 3> face;
-        int k = 0;
-        for (VertexIndex w : b.vertices_around_face(b.halfedge(f))) {
-          const Eigen::Vector3d p = ToEigen(b.point(w));
-          const Key key = KeyOf(p);
-          auto found = by_side.find({key, side});
-          if (found == by_side.end()) {
-            const int i = static_cast<int>(positions.size());
-            positions.push_back(p);
-            if (b.is_border(w)) {  // the crack's front: the model is not split there
-              embed_at.push_back(p);
-              by_side[{key, -side}] = i;
+        for (int k = 0; k < 3; ++k) {
+          const int c = cap_face[k];
+          if (index[c] < 0) {
+            const CapVertex& v = vertices[c];
+            const auto found = v.key >= 0 ? by_side.find({v.key, side}) : by_side.end();
+            if (found != by_side.end()) {
+              index[c] = found->second;
             } else {
-              embed_at.push_back(p + side * offset_mm * VertexNormal(b, w).normalized());
+              index[c] = static_cast<int>(positions.size());
+              positions.push_back(v.p);
+              embed_at.push_back(v.shared ? v.p : v.p + side * offset_mm * v.n);
+              if (v.key >= 0) by_side[{v.key, side}] = index[c];
+              if (v.shared && v.key >= 0) by_side[{v.key, -side}] = index[c];
             }
-            found = by_side.emplace(std::make_pair(key, side), i).first;
           }
-          face[k++] = found->second;
+          face[k] = index[c];
         }
         if (side == 1) std::swap(face[1], face[2]);
         faces.push_back(face);
@@ -261,6 +396,15 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
   out.surface.faces.resize(static_cast<Eigen::Index>(faces.size()), 3);
   for (size_t f = 0; f < faces.size(); ++f)
     out.surface.faces.row(static_cast<Eigen::Index>(f)) << faces[f][0], faces[f][1], faces[f][2];
+  if (out.capped) {
+    // Two caps describe two sides; where cracks branch inside the structure (three sheets on
+    // one edge) the sides are more than two, which this construction cannot represent.
+    const SurfaceTopology topology = AnalyzeSurface(out.surface);
+    ARREG_CHECK_INPUT(topology.closed_oriented_manifold(), "", "SplitAlongCrack",
+                      "the split structure is not a closed manifold (", topology.num_boundary_edges,
+                      " open and ", topology.num_nonmanifold_edges,
+                      " non-manifold edges): cracks branch or touch inside it");
+  }
   return out;
 }
 

@@ -34,7 +34,9 @@ struct SplitStructure {
 // that side's orientation, so every side of the structure stays a closed surface; along the
 // crack's front, where the model is not split, both caps share their vertices. A structure the
 // crack does not reach comes back unchanged. Throws arreg::Error when CGAL cannot represent the
-// inputs as meshes or the corefinement fails (e.g. self-intersecting inputs).
+// inputs as meshes or the corefinement fails (e.g. self-intersecting inputs), and when a closed
+// structure would not stay a closed manifold (cracks that branch inside it: more than two
+// sides).
 SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& crack,
                                double offset_mm);
 
