@@ -203,7 +203,7 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
   }
   out.added_faces = static_cast<int>(a.number_of_faces()) - faces_before;
 
-  // Crack vertices by position, with their normals.
+  // The crack's vertices by point id.
   PointIds id_of;
   std::map<int, VertexIndex> on_crack;
   for (VertexIndex v : b.vertices())
