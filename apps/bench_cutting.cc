@@ -178,20 +178,25 @@ std::string Plot(const std::vector<Run>& runs) {
 
 int RunBenchCutting(int argc, char** argv) {
   std::string json_path, svg_path;
-  int steps = 10, repeats = 21;
-  OptionParser parser("arreg bench cutting [--steps N] [--repeats N] [--json OUT] [--svg OUT]",
-                      "Cuts the thesis beam progressively with our remesher and the Bielser-style "
-                      "baseline at snapping thresholds 0, 0.1, 0.2, 0.3 (vertex/element growth, "
-                      "minimum dihedral angle, condition number of M + dt^2 K per step), and "
-                      "times one remeshing event crossing about 100 tetrahedra and the split of an "
-                      "internal structure (a sphere of 2,208 triangles) along its crack.");
+  int steps = 10, repeats = 21, structure_rings = 24;
+  OptionParser parser(
+      "arreg bench cutting [--steps N] [--repeats N] [--structure-rings N] [--json OUT] "
+      "[--svg OUT]",
+      "Cuts the thesis beam progressively with our remesher and the Bielser-style "
+      "baseline at snapping thresholds 0, 0.1, 0.2, 0.3 (vertex/element growth, "
+      "minimum dihedral angle, condition number of M + dt^2 K per step), and "
+      "times one remeshing event crossing about 100 tetrahedra and the split of an "
+      "internal structure (a sphere, 2,208 triangles by default) along its crack.");
   parser.AddInt("steps", &steps, "N", "cut steps of the advancing plane");
   parser.AddInt("repeats", &repeats, "N", "timed repetitions of the speed event and the split");
+  parser.AddInt("structure-rings", &structure_rings, "N",
+                "rings of the split sphere (2 N segments: 4 N^2 - 4 N triangles)");
   parser.AddString("json", &json_path, "OUT", "write all figures as JSON");
   parser.AddString("svg", &svg_path, "OUT", "write the vertex-count / condition-number plot");
   if (!parser.Parse(argc, argv)) return 0;
   ARREG_CHECK_INPUT(steps >= 1, "", "--steps", "must be >= 1");
   ARREG_CHECK_INPUT(repeats >= 1, "", "--repeats", "must be >= 1");
+  ARREG_CHECK_INPUT(structure_rings >= 2, "", "--structure-rings", "must be >= 2");
 
   const TetMesh beam = MakeBeam();
   cutting::ConditioningOptions cond;
@@ -292,7 +297,8 @@ int RunBenchCutting(int argc, char** argv) {
     cut_box.Cut(plane, o, &change);
   }
   const TetMesh cut_rest = cut_box.RestMesh();
-  const SurfaceMesh sphere = MakeUvSphere(Eigen::Vector3d(25, 25, 20), 12, 24, 48);
+  const SurfaceMesh sphere =
+      MakeUvSphere(Eigen::Vector3d(25, 25, 20), 12, structure_rings, 2 * structure_rings);
   std::vector<double> split_ms;
   cutting::SplitStructure split;
   for (int r = 0; r < repeats; ++r) {

@@ -5,9 +5,11 @@
 
 #include <array>
 #include <cstdio>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "core/file_util.h"
+#include "test_util.h"
 
 namespace {
 
@@ -93,6 +95,26 @@ TEST_F(Cli, BadInputExitsOneWithOneLineNamingTheFile) {
                std::string(ARREG_BINARY_DIR) + "/test_scratch/cli_run");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.output.find("scene.json"), std::string::npos) << r.output;
+}
+
+// `arreg bench cutting` on a small sphere: the split's figures reach the JSON (a sphere of
+// 6 rings has 4 x 36 - 24 = 120 triangles; a plane through its centre needs caps on both
+// sides), and a sphere too coarse to exist is refused with a one-line error naming the option.
+TEST_F(Cli, BenchCuttingReportsTheStructureSplit) {
+  const std::string json = arreg::testing::ScratchDir("cli_bench_cutting") + "/cutting.json";
+  Result r = RunArreg("bench cutting --steps 1 --repeats 1 --structure-rings 6 --json " + json);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(arreg::ReadFileToString(json));
+  EXPECT_EQ(j.at("structure_split").at("triangles").get<int>(), 120);
+  const int caps = j.at("structure_split").at("cap_triangles").get<int>();
+  EXPECT_GT(caps, 0);
+  EXPECT_EQ(caps % 2, 0) << "one cap per side";
+  EXPECT_GT(j.at("speed").at("median_ms").get<double>(), 0.0);
+
+  r = RunArreg("bench cutting --structure-rings 1");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(CountLines(r.output), 1) << r.output;
+  EXPECT_NE(r.output.find("--structure-rings"), std::string::npos) << r.output;
 }
 
 }  // namespace
