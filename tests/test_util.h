@@ -1,10 +1,14 @@
 // Helpers shared by the tests: locating ../shared/data (tests that need it
-// skip cleanly when it is absent) and scratch directories.
+// skip cleanly when it is absent), scratch directories, and surface parts.
 #pragma once
 
+#include <Eigen/Core>
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <vector>
+
+#include "core/mesh.h"
 
 namespace arreg::testing {
 
@@ -29,6 +33,19 @@ inline std::string ScratchDir(const std::string& name) {
   fs::remove_all(p);
   fs::create_directories(p);
   return p.string();
+}
+
+// The faces of `s` whose label (one per face) is `label`, on the same vertices.
+inline SurfaceMesh FacesWithLabel(const SurfaceMesh& s, const Eigen::VectorXi& labels, int label) {
+  SurfaceMesh out;
+  out.vertices = s.vertices;
+  std::vector<int> kept;
+  for (int f = 0; f < s.num_faces(); ++f)
+    if (labels(f) == label) kept.push_back(f);
+  out.faces.resize(static_cast<int>(kept.size()), 3);
+  for (size_t k = 0; k < kept.size(); ++k)
+    out.faces.row(static_cast<int>(k)) = s.faces.row(kept[k]);
+  return out;
 }
 
 }  // namespace arreg::testing

@@ -349,7 +349,8 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
       const int m = static_cast<int>(vertices.size());
       const CapVertex& u = vertices[edge.first];
       const CapVertex& w = vertices[edge.second];
-      vertices.push_back({(u.p + w.p) / 2, (u.n + w.n).normalized(), -1, false});
+      const CapVertex mid{(u.p + w.p) / 2, (u.n + w.n).normalized(), -1, false};
+      vertices.push_back(mid);  // after `mid` is built: push_back may move u and w
       for (size_t f = 0, n = cap.size(); f < n; ++f)
         for (int k = 0; k < 3; ++k) {
           const int a0 = cap[f][k], a1 = cap[f][(k + 1) % 3], a2 = cap[f][(k + 2) % 3];

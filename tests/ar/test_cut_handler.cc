@@ -10,6 +10,7 @@
 #include "core/mesh_generators.h"
 #include "core/mesh_ops.h"
 #include "cutting/mesh_checks.h"
+#include "test_util.h"
 
 namespace arreg::pipeline {
 namespace {
@@ -268,12 +269,7 @@ TEST(CutHandler, InternalStructureIsSplitAndCappedAlongTheCrack) {
       ASSERT_EQ(parts, 2);
       double total = 0;
       for (int k = 0; k < 2; ++k) {
-        SurfaceMesh half = opened;
-        std::vector<int> kept;
-        for (int f = 0; f < opened.num_faces(); ++f)
-          if (part(f) == k) kept.push_back(f);
-        half.faces.resize(static_cast<int>(kept.size()), 3);
-        for (size_t f = 0; f < kept.size(); ++f) half.faces.row(f) = opened.faces.row(kept[f]);
+        const SurfaceMesh half = testing::FacesWithLabel(opened, part, k);
         EXPECT_TRUE(AnalyzeSurface(half).closed_oriented_manifold());
         EXPECT_GT(EnclosedVolume(half), 0.3 * v_ball);
         total += EnclosedVolume(half);

@@ -17,19 +17,6 @@
 namespace arreg::cutting {
 namespace {
 
-// The faces of `s` with label `label` (per face) as a surface on the same vertices.
-SurfaceMesh Part(const SurfaceMesh& s, const Eigen::VectorXi& labels, int label) {
-  SurfaceMesh out;
-  out.vertices = s.vertices;
-  std::vector<int> kept;
-  for (int f = 0; f < s.num_faces(); ++f)
-    if (labels(f) == label) kept.push_back(f);
-  out.faces.resize(static_cast<int>(kept.size()), 3);
-  for (size_t k = 0; k < kept.size(); ++k)
-    out.faces.row(static_cast<int>(k)) = s.faces.row(kept[k]);
-  return out;
-}
-
 // Volume of the part of a ball of radius r on the far side of a plane at signed distance d
 // from its centre (the spherical cap of height r - d).
 double CapVolume(double r, double d) {
@@ -101,7 +88,7 @@ TEST(StructureSplit, ThroughCutSeparatesAClosedStructureIntoTwoClosedPieces) {
     ASSERT_EQ(num_parts, 2);
     double front_volume = 0, total = 0;
     for (int k = 0; k < 2; ++k) {
-      const SurfaceMesh piece_k = Part(opened, part, k);
+      const SurfaceMesh piece_k = testing::FacesWithLabel(opened, part, k);
       EXPECT_TRUE(AnalyzeSurface(piece_k).closed_oriented_manifold());
       const double v = EnclosedVolume(piece_k);
       EXPECT_GT(v, 0);
@@ -165,7 +152,7 @@ TEST(StructureSplit, OpenOrUntouchedStructures) {
     for (int k = 0; k < 3; ++k) z += ball.vertices(ball.faces(f, k), 2);
     lower(f) = z / 3 < center.z() ? 1 : 0;
   }
-  const SurfaceMesh bowl = Part(ball, lower, 1);
+  const SurfaceMesh bowl = testing::FacesWithLabel(ball, lower, 1);
   const CutBox block = CutBlock(MakePlaneSurface({20.3, 15, 15}, {1, 0, 0}, 100, 100, {0, 1, 0}));
   const SurfaceMesh crack = CrackSurface(block.rest);
   const double offset = 1e-4 * block.mean_edge_mm;

@@ -276,8 +276,8 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
       // Internal triangles and springs are tested against S in the configuration it was cut
       // in: in the rest one the lips have not moved apart, and a spring's side is its rest one.
       const RowMatX3d& after = in_rest ? state.rest_positions() : state.positions();
+      const TetMesh rest = state.RestMesh();  // after the cut: for the structures and the welds
       const bool split = options_.internal_caps && t.internal_original && !internal.empty();
-      const TetMesh rest = split ? state.RestMesh() : TetMesh();
       const SurfaceMesh crack = split ? cutting::CrackSurface(rest) : SurfaceMesh();
       for (size_t k = 0; k < internal.size(); ++k) {
         if (split && SplitInternal((*t.internal_original)[k], crack, rest, state, k, t, &ev))
@@ -300,7 +300,7 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
       }
       applied_points_.insert(applied_points_.end(), polyline_mm.begin(), polyline_mm.end());
       // The state is numbered like mesh_, so the pieces found there are the state's.
-      ev.welded_vertices = WeldDebris(pieces_after, &state);
+      ev.welded_vertices = WeldDebris(pieces_after, rest, &state);
       ev.new_vertices = state.num_vertices() - v_before;
       ev.new_tetrahedra = state.num_tetrahedra() - t_before;
     } else {
@@ -343,8 +343,8 @@ bool CutHandler::SplitInternal(const SurfaceMesh& original, const SurfaceMesh& c
   }
 }
 
-int CutHandler::WeldDebris(const Pieces& pieces, mechanics::MechanicalState* state) {
-  const TetMesh rest = state->RestMesh();
+int CutHandler::WeldDebris(const Pieces& pieces, const TetMesh& rest,
+                           mechanics::MechanicalState* state) {
   // The elements before this event may have been replaced: every weld is made again.
   const size_t welded_before = welds_.size();
   welds_.clear();

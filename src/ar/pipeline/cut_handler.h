@@ -89,9 +89,9 @@ class CutHandler {
   // in the .cc.
   struct Pieces;
   static Pieces FindPieces(const TetMesh& rest);
-  // Welds every debris piece of the state, given its pieces (see FollowWelds); returns how
-  // many vertices were welded by this call beyond those welded before.
-  int WeldDebris(const Pieces& pieces, mechanics::MechanicalState* state);
+  // Welds every debris piece of the state, given its pieces and rest mesh (see FollowWelds);
+  // returns how many vertices were welded by this call beyond those welded before.
+  int WeldDebris(const Pieces& pieces, const TetMesh& rest, mechanics::MechanicalState* state);
   struct Weld {
     int vertex = -1;
     mechanics::EmbeddedPoint at;  // the element it follows, rest barycentric coordinates
