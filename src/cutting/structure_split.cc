@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <array>
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -206,8 +207,11 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
   // The crack's vertices by point id.
   PointIds id_of;
   std::map<int, VertexIndex> on_crack;
-  for (VertexIndex v : b.vertices())
-    if (!b.is_isolated(v)) on_crack.emplace(id_of(b.point(v)), v);
+  std::vector<int> crack_id(b.num_vertices(), -1);
+  for (VertexIndex v : b.vertices()) {
+    crack_id[v.idx()] = id_of(b.point(v));
+    if (!b.is_isolated(v)) on_crack.emplace(crack_id[v.idx()], v);
+  }
 
   // The structure's vertices and faces (output vertex i is the split mesh's vertex i: the split
   // adds vertices and removes none) and, per position on the crack, how many copies it has.
@@ -248,15 +252,6 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
   std::vector<std::array<VertexIndex, 3>> cap_faces;
   if (closed) {
     out.capped = true;
-    const CGAL::Side_of_triangle_mesh<Mesh, Kernel> inside(original);
-    for (FaceIndex f : b.faces()) {
-      std::array<VertexIndex, 3> face;
-      int k = 0;
-      for (VertexIndex w : b.vertices_around_face(b.halfedge(f))) face[k++] = w;
-      // Exact: the corefined crack's faces are each inside or outside, however small.
-      const Point centroid = CGAL::centroid(b.point(face[0]), b.point(face[1]), b.point(face[2]));
-      if (inside(centroid) == CGAL::ON_BOUNDED_SIDE) cap_faces.push_back(face);
-    }
     // Each side's cap meets the structure's copy of the curve that runs the other way: in a
     // closed oriented surface every edge is traversed once in each direction. This pairs the
     // copies with the sides exactly, where tiny faces of the corefinement along the curve would
@@ -271,6 +266,43 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
         if (uses[std::minmax(u, w)] == 1 && copies.count(key_of[u]) && copies.count(key_of[w]))
           open_edges[{key_of[u], key_of[w]}] = {u, w};
       }
+    // The intersection curve (the crack's edges that are edges of the corefined structure too,
+    // split there or not) cuts the crack into regions, each inside the structure, outside it or
+    // on it (the curve bounds coplanar overlaps too), so one exact test per region classifies
+    // all its faces: at its first face's exact centroid, however small that face.
+    std::set<std::pair<int, int>> structure_edges;  // by point ids
+    for (const auto& [edge, count] : uses)
+      structure_edges.insert(std::minmax(key_of[edge.first], key_of[edge.second]));
+    const auto on_curve = [&](Mesh::Halfedge_index h) {
+      return structure_edges.count(
+                 std::minmax(crack_id[b.source(h).idx()], crack_id[b.target(h).idx()])) > 0;
+    };
+    const CGAL::Side_of_triangle_mesh<Mesh, Kernel> inside(original);
+    std::vector<bool> reached(b.num_faces(), false);
+    for (FaceIndex seed : b.faces()) {
+      if (reached[seed.idx()]) continue;
+      std::array<VertexIndex, 3> face;
+      int k = 0;
+      for (VertexIndex w : b.vertices_around_face(b.halfedge(seed))) face[k++] = w;
+      const Point centroid = CGAL::centroid(b.point(face[0]), b.point(face[1]), b.point(face[2]));
+      const bool in = inside(centroid) == CGAL::ON_BOUNDED_SIDE;
+      reached[seed.idx()] = true;
+      std::vector<FaceIndex> stack = {seed};
+      while (!stack.empty()) {
+        const FaceIndex f = stack.back();
+        stack.pop_back();
+        std::array<VertexIndex, 3> corners;
+        int c = 0;
+        for (VertexIndex w : b.vertices_around_face(b.halfedge(f))) corners[c++] = w;
+        if (in) cap_faces.push_back(corners);
+        for (Mesh::Halfedge_index h : b.halfedges_around_face(b.halfedge(f))) {
+          const FaceIndex g = b.face(b.opposite(h));
+          if (g == Mesh::null_face() || reached[g.idx()] || on_curve(h)) continue;
+          reached[g.idx()] = true;
+          stack.push_back(g);
+        }
+      }
+    }
     for (int side : {-1, 1})
       for (const auto& face : cap_faces)
         for (int k = 0; k < 3; ++k) {
