@@ -1,11 +1,13 @@
 #include "cutting/structure_split.h"
 
+#include <CGAL/Box_intersection_d/Box_with_info_d.h>
 #include <CGAL/Exact_predicates_exact_constructions_kernel.h>
 #include <CGAL/Polygon_mesh_processing/clip.h>
 #include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
 #include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
 #include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/Surface_mesh.h>
+#include <CGAL/box_intersection_d.h>
 
 #include <Eigen/Geometry>
 
@@ -69,14 +71,15 @@ Mesh ToMesh(const RowMatX3d& vertices, const RowMatX3i& faces, const char* what)
   return m;
 }
 
-// The crack as a CGAL mesh. Where cracks meet along an edge or touch at a vertex (a curved S
-// folding through snapped vertices), the halfedge mesh cannot hold them as they are:
+// The crack's `kept` faces as a CGAL mesh. Where cracks meet along an edge or touch at a vertex (a
+// curved S folding through snapped vertices), the halfedge mesh cannot hold them as they are:
 // orient_polygon_soup duplicates the vertices there and keeps the sheets' orientations.
-Mesh CrackToMesh(const SurfaceMesh& crack) {
+Mesh CrackToMesh(const SurfaceMesh& crack, const std::vector<bool>& kept) {
   std::vector<Point> points;
   std::vector<std::array<std::size_t, 3>> polygons;
   std::vector<int> index(crack.vertices.rows(), -1);
   for (int f = 0; f < crack.num_faces(); ++f) {
+    if (!kept[f]) continue;
     std::array<std::size_t, 3> polygon;
     for (int k = 0; k < 3; ++k) {
       const int v = crack.faces(f, k);
@@ -190,19 +193,88 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
       structure_box.extend(structure.vertices.row(structure.faces(f, k)).transpose());
   if (!crack_box.intersects(structure_box)) return out;
 
-  Mesh a = ToMesh(structure.vertices, structure.faces, "internal structure");
-  Mesh b = CrackToMesh(crack);
-  const bool closed = CGAL::is_closed(a);
-  const Mesh original = a;
+  // Only the structure's faces near the crack take part in the corefinement (the patch): those
+  // whose bounding box meets a crack face's, and every face around their vertices, so that the
+  // intersection curve and the stars of the vertices it may duplicate lie inside the patch.
+  // Likewise only the crack's faces whose box meets the structure's can cross it or lie in it.
+  const int n_structure = static_cast<int>(structure.vertices.rows());
+  using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, int>;
+  const auto box_of = [](const SurfaceMesh& m, int f) {
+    Eigen::AlignedBox3d box;
+    for (int k = 0; k < 3; ++k) box.extend(m.vertices.row(m.faces(f, k)).transpose());
+    return box;
+  };
+  std::vector<Box> structure_boxes, crack_boxes;
+  std::vector<bool> crack_kept(crack.num_faces(), false);
+  for (int f = 0; f < structure.num_faces(); ++f) {
+    const Eigen::AlignedBox3d box = box_of(structure, f);
+    structure_boxes.emplace_back(CGAL::Bbox_3(box.min().x(), box.min().y(), box.min().z(),
+                                              box.max().x(), box.max().y(), box.max().z()),
+                                 f);
+  }
+  for (int f = 0; f < crack.num_faces(); ++f) {
+    const Eigen::AlignedBox3d box = box_of(crack, f);
+    if (!box.intersects(structure_box)) continue;
+    crack_kept[f] = true;
+    crack_boxes.emplace_back(CGAL::Bbox_3(box.min().x(), box.min().y(), box.min().z(),
+                                          box.max().x(), box.max().y(), box.max().z()),
+                             f);
+  }
+  std::vector<bool> near_vertex(n_structure, false);
+  CGAL::box_intersection_d(structure_boxes.begin(), structure_boxes.end(), crack_boxes.begin(),
+                           crack_boxes.end(), [&](const Box& s, const Box&) {
+                             for (int k = 0; k < 3; ++k)
+                               near_vertex[structure.faces(s.info(), k)] = true;
+                           });
+  std::vector<int> patch_faces, other_faces;
+  for (int f = 0; f < structure.num_faces(); ++f) {
+    const auto& face = structure.faces.row(f);
+    (near_vertex[face(0)] || near_vertex[face(1)] || near_vertex[face(2)] ? patch_faces
+                                                                          : other_faces)
+        .push_back(f);
+  }
+  std::map<std::pair<int, int>, int> structure_uses;
+  for (int f = 0; f < structure.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k)
+      ++structure_uses[std::minmax(structure.faces(f, k), structure.faces(f, (k + 1) % 3))];
+  const bool closed = std::all_of(structure_uses.begin(), structure_uses.end(),
+                                  [](const auto& edge) { return edge.second == 2; });
+
+  // The patch as a CGAL mesh: patch vertex j (before the split) is structure vertex
+  // patch_vertex[j]; the vertices the split adds follow the structure's in the output.
+  std::vector<int> local(n_structure, -1), patch_vertex;
+  RowMatX3i patch(static_cast<Eigen::Index>(patch_faces.size()), 3);
+  for (size_t f = 0; f < patch_faces.size(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int v = structure.faces(patch_faces[f], k);
+      if (local[v] < 0) {
+        local[v] = static_cast<int>(patch_vertex.size());
+        patch_vertex.push_back(v);
+      }
+      patch(static_cast<Eigen::Index>(f), k) = local[v];
+    }
+  RowMatX3d patch_positions(static_cast<Eigen::Index>(patch_vertex.size()), 3);
+  for (size_t j = 0; j < patch_vertex.size(); ++j)
+    patch_positions.row(static_cast<Eigen::Index>(j)) = structure.vertices.row(patch_vertex[j]);
+  Mesh a = ToMesh(patch_positions, patch, "internal structure");
+  Mesh b = CrackToMesh(crack, crack_kept);
   const int faces_before = static_cast<int>(a.number_of_faces());
-  try {
-    // Corefines both meshes (the crack gets the intersection curve too) and duplicates the
-    // structure's vertices along the curve.
-    PMP::split(a, b);
-  } catch (const std::exception& e) {
-    throw Error("", "SplitAlongCrack", std::string("corefinement failed: ") + e.what());
+  if (faces_before > 0) {
+    try {
+      // Corefines both meshes (the crack gets the intersection curve too) and duplicates the
+      // structure's vertices along the curve.
+      PMP::split(a, b);
+    } catch (const std::exception& e) {
+      throw Error("", "SplitAlongCrack", std::string("corefinement failed: ") + e.what());
+    }
   }
   out.added_faces = static_cast<int>(a.number_of_faces()) - faces_before;
+  const int n_patch = static_cast<int>(patch_vertex.size());
+  // Output index of patch vertex j (the split adds vertices and removes none).
+  const auto global = [&](VertexIndex v) {
+    const int j = static_cast<int>(v.idx());
+    return j < n_patch ? patch_vertex[j] : n_structure + (j - n_patch);
+  };
 
   // The crack's vertices by point id.
   PointIds id_of;
@@ -213,27 +285,26 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
     if (!b.is_isolated(v)) on_crack.emplace(crack_id[v.idx()], v);
   }
 
-  // The structure's vertices and faces (output vertex i is the split mesh's vertex i: the split
-  // adds vertices and removes none) and, per position on the crack, how many copies it has.
-  const int nv = static_cast<int>(a.number_of_vertices());
-  std::vector<Eigen::Vector3d> positions, embed_at;
-  positions.reserve(nv);
-  std::vector<int> key_of(nv);  // the vertex's point id
+  // The output's vertices and faces and, per position on the crack, how many copies it has.
+  const int nv = n_structure + static_cast<int>(a.number_of_vertices()) - n_patch;
+  std::vector<Eigen::Vector3d> positions(nv), embed_at;
+  for (int i = 0; i < n_structure; ++i) positions[i] = structure.vertices.row(i).transpose();
+  std::vector<int> key_of(nv, -1);  // the point id of a patch vertex
   std::map<int, int> copies;
   for (VertexIndex v : a.vertices()) {
-    const int i = static_cast<int>(v.idx());
-    ARREG_ASSERT(i == static_cast<int>(positions.size()), "vertex ", i);
-    positions.push_back(ToEigen(a.point(v)));
+    const int i = global(v);
+    positions[i] = ToEigen(a.point(v));
     key_of[i] = id_of(a.point(v));
     if (!a.is_isolated(v) && on_crack.count(key_of[i])) ++copies[key_of[i]];
   }
   embed_at = positions;
   std::vector<std::array<int, 3>> faces;
+  for (const int f : other_faces)
+    faces.push_back({structure.faces(f, 0), structure.faces(f, 1), structure.faces(f, 2)});
   for (FaceIndex f : a.faces()) {
     std::array<int, 3> face;
     int k = 0;
-    for (VertexIndex w : a.vertices_around_face(a.halfedge(f)))
-      face[k++] = static_cast<int>(w.idx());
+    for (VertexIndex w : a.vertices_around_face(a.halfedge(f))) face[k++] = global(w);
     faces.push_back(face);
   }
   // (position, side) -> output vertex; side -1 is behind the crack's normal, +1 in front. A
@@ -255,13 +326,18 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
     // Each side's cap meets the structure's copy of the curve that runs the other way: in a
     // closed oriented surface every edge is traversed once in each direction. This pairs the
     // copies with the sides exactly, where tiny faces of the corefinement along the curve would
-    // make a geometric side test guess.
+    // make a geometric side test guess. (Edges are counted among the patch's vertices: the
+    // curve lies inside the patch.)
     std::map<std::pair<int, int>, int> uses;
     for (const auto& face : faces)
-      for (int k = 0; k < 3; ++k) ++uses[std::minmax(face[k], face[(k + 1) % 3])];
-    std::map<std::pair<int, int>, std::pair<int, int>> open_edges;  // directed, by point ids
-    for (const auto& face : faces)
       for (int k = 0; k < 3; ++k) {
+        const int u = face[k], w = face[(k + 1) % 3];
+        if (key_of[u] >= 0 && key_of[w] >= 0) ++uses[std::minmax(u, w)];
+      }
+    std::map<std::pair<int, int>, std::pair<int, int>> open_edges;  // directed, by point ids
+    for (size_t f = other_faces.size(); f < faces.size(); ++f)
+      for (int k = 0; k < 3; ++k) {
+        const auto& face = faces[f];
         const int u = face[k], w = face[(k + 1) % 3];
         if (uses[std::minmax(u, w)] == 1 && copies.count(key_of[u]) && copies.count(key_of[w]))
           open_edges[{key_of[u], key_of[w]}] = {u, w};
@@ -277,6 +353,7 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
       return structure_edges.count(
                  std::minmax(crack_id[b.source(h).idx()], crack_id[b.target(h).idx()])) > 0;
     };
+    const Mesh original = ToMesh(structure.vertices, structure.faces, "internal structure");
     const CGAL::Side_of_triangle_mesh<Mesh, Kernel> inside(original);
     std::vector<bool> reached(b.num_faces(), false);
     for (FaceIndex seed : b.faces()) {
@@ -319,7 +396,7 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
   // Copies on the crack are embedded a hair off it on their side; a copy no cap met (an open
   // structure) takes the side its faces lie on.
   for (VertexIndex v : a.vertices()) {
-    const int i = static_cast<int>(v.idx());
+    const int i = global(v);
     const int key = key_of[i];
     const auto c = copies.find(key);
     if (c == copies.end() || c->second == 1 || a.is_isolated(v)) continue;
@@ -441,14 +518,41 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
   return out;
 }
 
-mechanics::EmbeddedPoints EmbedSplitStructure(const SplitStructure& split, const TetMesh& rest) {
-  mechanics::EmbeddedPoints e =
-      mechanics::EmbeddedPoints::Embed(split.embed_at_mm, rest.vertices, rest.tetrahedra);
+mechanics::EmbeddedPoints EmbedSplitStructure(const SplitStructure& split, const TetMesh& rest,
+                                              const PreviousEmbedding& previous) {
+  const RowMatX3d& at = split.embed_at_mm;
+  const RowMatX3d& position = split.surface.vertices;
+  mechanics::EmbeddedPoints e;
+  if (previous.points == nullptr) {
+    e = mechanics::EmbeddedPoints::Embed(at, rest.vertices, rest.tetrahedra);
+  } else {
+    ARREG_CHECK_INPUT(
+        previous.rest_mm != nullptr && previous.rest_mm->rows() == previous.points->size(), "",
+        "EmbedSplitStructure", "the previous embedding needs its points");
+    e = *previous.points;
+    const int kept = std::min(e.size(), static_cast<int>(position.rows()));
+    e.Resize(static_cast<int>(position.rows()));
+    std::vector<int> again;
+    for (int i = 0; i < e.size(); ++i) {
+      bool same = i < kept && at.row(i) == position.row(i) &&
+                  previous.rest_mm->row(i) == position.row(i) && e[i].tet >= 0 &&
+                  e[i].tet < rest.num_tetrahedra();
+      if (same) {
+        Eigen::Vector3d p = Eigen::Vector3d::Zero();
+        for (int a = 0; a < 4; ++a)
+          p += e[i].barycentric(a) * rest.vertices.row(rest.tetrahedra(e[i].tet, a)).transpose();
+        const Eigen::Vector3d x = position.row(i).transpose();
+        same = (p - x).norm() <= 1e-9 * (1 + x.norm());
+      }
+      if (!same) again.push_back(i);
+    }
+    if (!again.empty()) e.Reembed(again, at, rest.vertices, rest.tetrahedra, {});
+  }
   for (int i = 0; i < e.size(); ++i) {
-    if (split.embed_at_mm.row(i) == split.surface.vertices.row(i)) continue;
+    if (at.row(i) == position.row(i)) continue;
     const auto& t = rest.tetrahedra.row(e[i].tet);
     e[i].barycentric = mechanics::BarycentricCoordinates(
-        split.surface.vertices.row(i).transpose(), rest.vertices.row(t(0)).transpose(),
+        position.row(i).transpose(), rest.vertices.row(t(0)).transpose(),
         rest.vertices.row(t(1)).transpose(), rest.vertices.row(t(2)).transpose(),
         rest.vertices.row(t(3)).transpose());
   }

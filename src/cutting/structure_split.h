@@ -40,9 +40,19 @@ struct SplitStructure {
 SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& crack,
                                double offset_mm);
 
+// The structure's embedding before an event, for EmbedSplitStructure to keep where it still holds.
+struct PreviousEmbedding {
+  const mechanics::EmbeddedPoints* points = nullptr;  // the embedding before the event
+  const RowMatX3d* rest_mm = nullptr;                 // the points it embeds (rest, #P x 3)
+};
+
 // Embeds the split structure in the rest mesh `rest`: each vertex in the element that contains
 // its embed_at_mm point, with its own barycentric coordinates there (on the crack they lie on
-// that element's face).
-mechanics::EmbeddedPoints EmbedSplitStructure(const SplitStructure& split, const TetMesh& rest);
+// that element's face). With `previous`, the re-embedding is local: a vertex off the crack that
+// is the same point as the previous one of its index keeps that embedding where it still gives
+// the point in `rest` (its element was neither replaced nor moved by snapping); only the others
+// (on the crack, the caps', those of changed elements) are located again.
+mechanics::EmbeddedPoints EmbedSplitStructure(const SplitStructure& split, const TetMesh& rest,
+                                              const PreviousEmbedding& previous = {});
 
 }  // namespace arreg::cutting

@@ -251,6 +251,12 @@ int EmbeddedPoints::num_outside() const {
                                         [](double d) { return d > 0.0; }));
 }
 
+void EmbeddedPoints::Resize(int n) {
+  ARREG_CHECK_INPUT(n >= 0, "", "EmbeddedPoints::Resize", "negative size ", n);
+  points_.resize(n);
+  outside_distance_.resize(n, 0.0);
+}
+
 void EmbeddedPoints::RenumberTetrahedra(const std::vector<std::pair<int, int>>& moved) {
   if (moved.empty()) return;
   std::vector<std::pair<int, int>> sorted = moved;

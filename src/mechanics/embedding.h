@@ -61,6 +61,8 @@ class EmbeddedPoints {
   void Positions(const RowMatX3d& vertices, const RowMatX4i& tetrahedra, RowMatX3d* out) const;
 
   int size() const { return static_cast<int>(points_.size()); }
+  // Keeps the first n points (n < size()) or appends unembedded ones (tet -1) for Reembed.
+  void Resize(int n);
   const EmbeddedPoint& operator[](int i) const { return points_[i]; }
   EmbeddedPoint& operator[](int i) { return points_[i]; }
   const std::vector<EmbeddedPoint>& points() const { return points_; }

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <set>
 
 #include "core/error.h"
 #include "core/mesh_generators.h"
@@ -199,7 +200,7 @@ TEST(StructureSplit, LiverRandomCracksGiveClosedStructures) {
   const double half = box.size().norm();
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> u(0, 1);
-  int cut_cases = 0, split_cases = 0, refused = 0;
+  int cut_cases = 0, split_cases = 0, refused = 0, kept_total = 0, vertices_total = 0;
   for (int i = 0; i < 80; ++i) {
     CuttableMesh m(liver);
     // A point of the liver (a random element's centroid) and a ball around it.
@@ -231,10 +232,13 @@ TEST(StructureSplit, LiverRandomCracksGiveClosedStructures) {
                       4, 4);
     CutOptions opt;
     opt.snap_epsilon = 0.1 * (i % 3);
-    if (m.Cut(s, opt).status != CutStatus::kCut) continue;
+    CutChange change;
+    if (m.Cut(s, opt, &change).status != CutStatus::kCut) continue;
     ++cut_cases;
     const TetMesh rest = m.RestMesh();
     SCOPED_TRACE(::testing::Message() << "case " << i);
+    const mechanics::EmbeddedPoints before =
+        mechanics::EmbeddedPoints::Embed(ball.vertices, liver.vertices, liver.tetrahedra);
     SplitStructure split;
     try {
       split = SplitAlongCrack(ball, CrackSurface(rest), 1e-4 * m.mean_rest_edge_length());
@@ -252,9 +256,39 @@ TEST(StructureSplit, LiverRandomCracksGiveClosedStructures) {
                   .cwiseAbs()
                   .maxCoeff(),
               1e-9);
+    // Local re-embedding from the ball's embedding in the uncut liver: the same rest positions,
+    // and the vertices off the crack in unchanged elements keep their embedding.
+    const mechanics::EmbeddedPoints local =
+        EmbedSplitStructure(split, rest, {&before, &ball.vertices});
+    ASSERT_EQ(local.size(), e.size());
+    EXPECT_LT((local.Positions(rest.vertices, rest.tetrahedra) - split.surface.vertices)
+                  .cwiseAbs()
+                  .maxCoeff(),
+              1e-9);
+    for (int v = 0; v < local.size(); ++v)
+      if (split.embed_at_mm.row(v) != split.surface.vertices.row(v))
+        EXPECT_EQ(local[v].tet, e[v].tet) << "vertex " << v << " on the crack";
+    // Elements the event changed: replaced, or with a vertex moved by snapping.
+    std::set<int> changed(change.removed_tetrahedra.begin(), change.removed_tetrahedra.end());
+    std::set<int> snapped;
+    for (const SnappedVertex& sv : change.snapped) snapped.insert(sv.index);
+    for (int t = 0; t < liver.num_tetrahedra(); ++t)
+      for (int k = 0; k < 4; ++k)
+        if (snapped.count(liver.tetrahedra(t, k))) changed.insert(t);
+    for (int v = 0; v < before.size(); ++v) {
+      const bool same =
+          local[v].tet == before[v].tet && local[v].barycentric == before[v].barycentric;
+      if (split.embed_at_mm.row(v) == split.surface.vertices.row(v) &&
+          !changed.count(before[v].tet))
+        EXPECT_TRUE(same) << "vertex " << v << " in an unchanged element";
+      kept_total += same;
+    }
+    vertices_total += before.size();
   }
-  std::printf("liver: %d of 80 cases cut, %d balls split and capped, %d refused\n", cut_cases,
-              split_cases, refused);
+  std::printf(
+      "liver: %d of 80 cases cut, %d balls split and capped, %d refused; %d of %d vertices kept "
+      "their embedding\n",
+      cut_cases, split_cases, refused, kept_total, vertices_total);
   EXPECT_GE(split_cases, 40);
   EXPECT_LE(refused, 4);
 }

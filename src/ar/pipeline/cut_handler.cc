@@ -328,7 +328,9 @@ bool CutHandler::SplitInternal(const SurfaceMesh& original, const SurfaceMesh& c
     // every event; a vertex on the crack is placed a hair off it, towards its side.
     const cutting::SplitStructure split = cutting::SplitAlongCrack(
         original, crack, kCrackOffsetFraction * mesh_->mean_rest_edge_length());
-    (*t.internal_embedding)[k] = cutting::EmbedSplitStructure(split, rest);
+    // Vertices off the crack keep their embedding where their element is unchanged.
+    (*t.internal_embedding)[k] = cutting::EmbedSplitStructure(
+        split, rest, {&(*t.internal_embedding)[k], &(*t.internal_rest_mm)[k]});
     (*t.internal_rest_mm)[k] = split.surface.vertices;
     (*t.internal)[k].faces = split.surface.faces;
     (*t.internal_embedding)[k].Positions(state.positions(), state.tetrahedra(),
