@@ -420,7 +420,7 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
     // The cap's vertices: the crack's, plus midpoints of chords (below).
     struct CapVertex {
       Eigen::Vector3d p, n;  // position, unit normal of the crack
-      int key;               // point id (-1 for a chord's midpoint)
+      int key;               // point id; -1 for a chord's midpoint, below for a curve edge's
       bool shared;           // one vertex for both sides
     };
     std::vector<CapVertex> vertices;
@@ -469,6 +469,54 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
           break;
         }
     }
+    // A curve edge between two curve ends (a piece of the curve one edge long) is not split,
+    // so its two faces and the two caps would make four on one edge: the edge is split at its
+    // midpoint in the structure's faces too, with a copy of the midpoint per side.
+    std::map<std::pair<int, int>, int> structure_face;  // directed edge -> face
+    for (size_t f = 0; f < faces.size(); ++f)
+      for (int k = 0; k < 3; ++k)
+        structure_face[{faces[f][k], faces[f][(k + 1) % 3]}] = static_cast<int>(f);
+    const auto single = [&](const CapVertex& v) {  // the output vertex serving both sides
+      const auto l = v.key >= 0 ? by_side.find({v.key, -1}) : by_side.end();
+      const auto r = v.key >= 0 ? by_side.find({v.key, 1}) : by_side.end();
+      return l != by_side.end() && r != by_side.end() && l->second == r->second ? l->second : -1;
+    };
+    int next_key = -2;  // keys of such midpoints: below -1, apart from point ids
+    for (size_t f = 0; f < cap.size(); ++f)
+      for (int k = 0; k < 3; ++k) {
+        const int a0 = cap[f][k], a1 = cap[f][(k + 1) % 3], a2 = cap[f][(k + 2) % 3];
+        const auto count = uses.find({std::min(a0, a1), std::max(a0, a1)});
+        if (count == uses.end() || count->second != 1) continue;
+        const int s0 = single(vertices[a0]), s1 = single(vertices[a1]);
+        if (s0 < 0 || s1 < 0) continue;
+        // The side -1 cap runs a0 -> a1 (the crack's orientation): the structure's face of that
+        // side runs s1 -> s0, the other side's s0 -> s1.
+        const auto behind = structure_face.find({s1, s0}), front = structure_face.find({s0, s1});
+        if (behind == structure_face.end() || front == structure_face.end()) continue;
+        const CapVertex& u = vertices[a0];
+        const CapVertex& w = vertices[a1];
+        const CapVertex mid{(u.p + w.p) / 2, (u.n + w.n).normalized(), next_key--, false};
+        for (int side : {-1, 1}) {
+          const int m = static_cast<int>(positions.size());
+          positions.push_back(mid.p);
+          embed_at.push_back(mid.p + side * offset_mm * mid.n);
+          by_side[{mid.key, side}] = m;
+          const int from = side < 0 ? s1 : s0, to = side < 0 ? s0 : s1;
+          const int split = (side < 0 ? behind : front)->second;
+          int third = -1;
+          for (int c = 0; c < 3; ++c)
+            if (faces[split][c] != from && faces[split][c] != to) third = faces[split][c];
+          faces[split] = {from, m, third};
+          faces.push_back({m, to, third});
+          for (const int g : {split, static_cast<int>(faces.size()) - 1})
+            for (int c = 0; c < 3; ++c) structure_face[{faces[g][c], faces[g][(c + 1) % 3]}] = g;
+        }
+        const int c = static_cast<int>(vertices.size());
+        vertices.push_back(mid);  // after `mid` is used: push_back may move u and w
+        cap[f] = {a0, c, a2};
+        cap.push_back({c, a1, a2});
+        k = -1;  // the face's other edges again
+      }
     for (int side : {-1, 1}) {
       std::vector<int> index(vertices.size(), -1);
       for (const auto& cap_face : cap) {
@@ -477,7 +525,7 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
           const int c = cap_face[k];
           if (index[c] < 0) {
             const CapVertex& v = vertices[c];
-            const auto found = v.key >= 0 ? by_side.find({v.key, side}) : by_side.end();
+            const auto found = v.key != -1 ? by_side.find({v.key, side}) : by_side.end();
             if (found != by_side.end()) {
               index[c] = found->second;
             } else {

@@ -172,6 +172,33 @@ TEST(StructureSplit, OpenOrUntouchedStructures) {
   EXPECT_EQ(untouched.surface.vertices, aside.vertices);
 }
 
+// A piece of the intersection curve one edge long (a crack's corner poking through one face
+// of the structure) has both ends on the crack's border, so the corefinement cannot split the
+// structure along it, and its two faces with the two caps would make four on one edge. The
+// edge is split at its midpoint, with a copy per side, so the pocket closes.
+TEST(StructureSplit, CurvePieceOfOneEdgeIsSplitAtItsMidpoint) {
+  const SurfaceMesh cube =
+      ExtractBoundary(MakeBoxTetMesh(Eigen::Vector3d(10, 10, 10), Eigen::Vector3i(1, 1, 1)));
+  ASSERT_TRUE(AnalyzeSurface(cube).closed_oriented_manifold());
+  SurfaceMesh crack;  // in the plane x = 2: the corner (2, 1.25, 9) inside, the others above
+  crack.vertices.resize(3, 3);
+  crack.vertices << 2, 1.25, 9, 2, 0.5, 12, 2, 2, 12;
+  crack.faces.resize(1, 3);
+  crack.faces << 0, 1, 2;
+  // The crack meets the top face z = 10 in (2, 1, 10)-(2, 1.5, 10), inside one of its triangles.
+  const SplitStructure split = SplitAlongCrack(cube, crack, 1e-3);
+  ASSERT_TRUE(split.capped);
+  EXPECT_GT(split.cap_faces, 0);
+  EXPECT_TRUE(AnalyzeSurface(split.surface).closed_oriented_manifold());
+  EXPECT_NEAR(EnclosedVolume(split.surface), 1000, 1e-9 * 1000);
+  std::vector<double> sides;  // embedding points of the midpoint's copies, relative to x = 2
+  for (int v = 0; v < split.surface.vertices.rows(); ++v)
+    if ((split.surface.vertices.row(v) - Eigen::RowVector3d(2, 1.25, 10)).norm() < 1e-12)
+      sides.push_back(split.embed_at_mm(v, 0) - 2);
+  ASSERT_EQ(sides.size(), 2u);
+  EXPECT_LT(sides[0] * sides[1], 0);
+}
+
 // The crack of a block cut through by the plane x = 20.3 is that plane's section of the block
 // (30 x 30 mm); an uncut mesh has none.
 TEST(StructureSplit, CrackSurfaceIsTheCutSection) {
@@ -265,9 +292,11 @@ TEST(StructureSplit, LiverRandomCracksGiveClosedStructures) {
                   .cwiseAbs()
                   .maxCoeff(),
               1e-9);
-    for (int v = 0; v < local.size(); ++v)
-      if (split.embed_at_mm.row(v) != split.surface.vertices.row(v))
+    for (int v = 0; v < local.size(); ++v) {
+      if (split.embed_at_mm.row(v) != split.surface.vertices.row(v)) {
         EXPECT_EQ(local[v].tet, e[v].tet) << "vertex " << v << " on the crack";
+      }
+    }
     // Elements the event changed: replaced, or with a vertex moved by snapping.
     std::set<int> changed(change.removed_tetrahedra.begin(), change.removed_tetrahedra.end());
     std::set<int> snapped;
@@ -279,8 +308,9 @@ TEST(StructureSplit, LiverRandomCracksGiveClosedStructures) {
       const bool same =
           local[v].tet == before[v].tet && local[v].barycentric == before[v].barycentric;
       if (split.embed_at_mm.row(v) == split.surface.vertices.row(v) &&
-          !changed.count(before[v].tet))
+          !changed.count(before[v].tet)) {
         EXPECT_TRUE(same) << "vertex " << v << " in an unchanged element";
+      }
       kept_total += same;
     }
     vertices_total += before.size();
