@@ -2,6 +2,7 @@
 // reproduction, local re-embedding.
 #include <gtest/gtest.h>
 
+#include "core/error.h"
 #include "mechanics/embedding.h"
 #include "mechanics_test_util.h"
 
@@ -60,6 +61,24 @@ TEST(Embedding, ReembedRestrictsTheSearchToCandidates) {
   EXPECT_LE(e[0].tet, 5);
   for (int i = 1; i < e.size(); ++i) EXPECT_EQ(e[i].tet, before[i].tet);
   EXPECT_LT((e.Positions(mesh.vertices, mesh.tetrahedra).row(0) - points.row(0)).norm(), 1e-9);
+}
+
+TEST(Embedding, ResizeKeepsThePointsAndAppendsOnesToEmbed) {
+  const TetMesh mesh = testing::SmallBox({3, 3, 3}, {30, 30, 30});
+  const RowMatX3d points = RandomPoints(20, {0, 0, 0}, {30, 30, 30}, 4);
+  EmbeddedPoints e = EmbeddedPoints::Embed(points.topRows(12), mesh.vertices, mesh.tetrahedra);
+  const EmbeddedPoints before = e;
+  e.Resize(20);
+  ASSERT_EQ(e.size(), 20);
+  ASSERT_EQ(static_cast<int>(e.outside_distance().size()), 20);
+  for (int i = 12; i < 20; ++i) EXPECT_EQ(e[i].tet, -1);
+  e.Reembed({12, 13, 14, 15, 16, 17, 18, 19}, points, mesh.vertices, mesh.tetrahedra, {});
+  for (int i = 0; i < 12; ++i) EXPECT_EQ(e[i].tet, before[i].tet);
+  EXPECT_LT((e.Positions(mesh.vertices, mesh.tetrahedra) - points).cwiseAbs().maxCoeff(), 1e-10);
+  e.Resize(5);
+  EXPECT_EQ(e.size(), 5);
+  EXPECT_EQ(e[4].tet, before[4].tet);
+  EXPECT_THROW(e.Resize(-1), Error);
 }
 
 TEST(Embedding, PointTetDistance) {
