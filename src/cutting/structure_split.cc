@@ -233,12 +233,17 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
                                                                           : other_faces)
         .push_back(f);
   }
-  std::map<std::pair<int, int>, int> structure_uses;
+  // Closed: every edge has two faces.
+  std::vector<std::pair<int, int>> edges;
+  edges.reserve(3 * static_cast<size_t>(structure.num_faces()));
   for (int f = 0; f < structure.num_faces(); ++f)
     for (int k = 0; k < 3; ++k)
-      ++structure_uses[std::minmax(structure.faces(f, k), structure.faces(f, (k + 1) % 3))];
-  const bool closed = std::all_of(structure_uses.begin(), structure_uses.end(),
-                                  [](const auto& edge) { return edge.second == 2; });
+      edges.push_back(std::minmax(structure.faces(f, k), structure.faces(f, (k + 1) % 3)));
+  std::sort(edges.begin(), edges.end());
+  bool closed = true;
+  for (size_t e = 0; e < edges.size() && closed; e += 2)
+    closed = e + 1 < edges.size() && edges[e + 1] == edges[e] &&
+             (e + 2 == edges.size() || edges[e + 2] != edges[e]);
 
   // The patch as a CGAL mesh: patch vertex j (before the split) is structure vertex
   // patch_vertex[j]; the vertices the split adds follow the structure's in the output.
@@ -472,10 +477,12 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
     // A curve edge between two curve ends (a piece of the curve one edge long) is not split,
     // so its two faces and the two caps would make four on one edge: the edge is split at its
     // midpoint in the structure's faces too, with a copy of the midpoint per side.
-    std::map<std::pair<int, int>, int> structure_face;  // directed edge -> face
-    for (size_t f = 0; f < faces.size(); ++f)
-      for (int k = 0; k < 3; ++k)
-        structure_face[{faces[f][k], faces[f][(k + 1) % 3]}] = static_cast<int>(f);
+    std::map<std::pair<int, int>, int> structure_face;  // directed edge -> face (the patch's)
+    const auto index_faces = [&](size_t from) {
+      for (size_t f = from; f < faces.size(); ++f)
+        for (int k = 0; k < 3; ++k)
+          structure_face[{faces[f][k], faces[f][(k + 1) % 3]}] = static_cast<int>(f);
+    };
     const auto single = [&](const CapVertex& v) {  // the output vertex serving both sides
       const auto l = v.key >= 0 ? by_side.find({v.key, -1}) : by_side.end();
       const auto r = v.key >= 0 ? by_side.find({v.key, 1}) : by_side.end();
@@ -489,6 +496,7 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
         if (count == uses.end() || count->second != 1) continue;
         const int s0 = single(vertices[a0]), s1 = single(vertices[a1]);
         if (s0 < 0 || s1 < 0) continue;
+        if (structure_face.empty()) index_faces(other_faces.size());  // once, when needed
         // The side -1 cap runs a0 -> a1 (the crack's orientation): the structure's face of that
         // side runs s1 -> s0, the other side's s0 -> s1.
         const auto behind = structure_face.find({s1, s0}), front = structure_face.find({s0, s1});
