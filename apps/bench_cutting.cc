@@ -293,8 +293,7 @@ int RunBenchCutting(int argc, char** argv) {
   {
     CutOptions o;
     o.snap_epsilon = 0;
-    cutting::CutChange change;
-    cut_box.Cut(plane, o, &change);
+    cut_box.Cut(plane, o);
   }
   const TetMesh cut_rest = cut_box.RestMesh();
   const SurfaceMesh sphere =
@@ -315,9 +314,8 @@ int RunBenchCutting(int argc, char** argv) {
   const double split_median_ms = Median(split_ms);
   std::printf(
       "internal structure split along that crack (sphere of %d triangles; %d added by the "
-      "subdivision, %d cap triangles), crack extraction and local re-embedding included: median "
-      "%.3f ms "
-      "wall over %d runs\n",
+      "subdivision, %d cap triangles), crack extraction and local re-embedding included: "
+      "median %.3f ms wall over %d runs\n",
       sphere.num_faces(), split.added_faces, split.cap_faces, split_median_ms, repeats);
 
   if (!json_path.empty()) {

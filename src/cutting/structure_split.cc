@@ -184,42 +184,39 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
   out.surface.faces = structure.faces;
   out.embed_at_mm = structure.vertices;
   if (crack.num_faces() == 0 || structure.num_faces() == 0) return out;
+  // Bounding boxes per face (double coordinates: exact), and of each whole surface.
+  using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, int>;
+  const auto face_boxes = [](const SurfaceMesh& m, CGAL::Bbox_3* all) {
+    std::vector<Box> boxes;
+    boxes.reserve(static_cast<size_t>(m.num_faces()));
+    for (int f = 0; f < m.num_faces(); ++f) {
+      CGAL::Bbox_3 box;
+      for (int k = 0; k < 3; ++k) {
+        const auto& p = m.vertices.row(m.faces(f, k));
+        box += CGAL::Bbox_3(p.x(), p.y(), p.z(), p.x(), p.y(), p.z());
+      }
+      *all += box;
+      boxes.emplace_back(box, f);
+    }
+    return boxes;
+  };
+  CGAL::Bbox_3 structure_box, crack_box;
+  std::vector<Box> structure_boxes = face_boxes(structure, &structure_box);  // sorted below
+  std::vector<Box> crack_boxes = face_boxes(crack, &crack_box);
   // A crack whose bounding box misses the structure's neither crosses it nor lies inside it.
-  Eigen::AlignedBox3d crack_box, structure_box;
-  for (int f = 0; f < crack.num_faces(); ++f)
-    for (int k = 0; k < 3; ++k) crack_box.extend(crack.vertices.row(crack.faces(f, k)).transpose());
-  for (int f = 0; f < structure.num_faces(); ++f)
-    for (int k = 0; k < 3; ++k)
-      structure_box.extend(structure.vertices.row(structure.faces(f, k)).transpose());
-  if (!crack_box.intersects(structure_box)) return out;
+  if (!CGAL::do_overlap(crack_box, structure_box)) return out;
 
   // Only the structure's faces near the crack take part in the corefinement (the patch): those
   // whose bounding box meets a crack face's, and every face around their vertices, so that the
   // intersection curve and the stars of the vertices it may duplicate lie inside the patch.
   // Likewise only the crack's faces whose box meets the structure's can cross it or lie in it.
   const int n_structure = static_cast<int>(structure.vertices.rows());
-  using Box = CGAL::Box_intersection_d::Box_with_info_d<double, 3, int>;
-  const auto box_of = [](const SurfaceMesh& m, int f) {
-    Eigen::AlignedBox3d box;
-    for (int k = 0; k < 3; ++k) box.extend(m.vertices.row(m.faces(f, k)).transpose());
-    return box;
-  };
-  std::vector<Box> structure_boxes, crack_boxes;
   std::vector<bool> crack_kept(crack.num_faces(), false);
-  for (int f = 0; f < structure.num_faces(); ++f) {
-    const Eigen::AlignedBox3d box = box_of(structure, f);
-    structure_boxes.emplace_back(CGAL::Bbox_3(box.min().x(), box.min().y(), box.min().z(),
-                                              box.max().x(), box.max().y(), box.max().z()),
-                                 f);
-  }
-  for (int f = 0; f < crack.num_faces(); ++f) {
-    const Eigen::AlignedBox3d box = box_of(crack, f);
-    if (!box.intersects(structure_box)) continue;
-    crack_kept[f] = true;
-    crack_boxes.emplace_back(CGAL::Bbox_3(box.min().x(), box.min().y(), box.min().z(),
-                                          box.max().x(), box.max().y(), box.max().z()),
-                             f);
-  }
+  crack_boxes.erase(
+      std::remove_if(crack_boxes.begin(), crack_boxes.end(),
+                     [&](const Box& b) { return !CGAL::do_overlap(b.bbox(), structure_box); }),
+      crack_boxes.end());
+  for (const Box& b : crack_boxes) crack_kept[b.info()] = true;
   std::vector<bool> near_vertex(n_structure, false);
   CGAL::box_intersection_d(structure_boxes.begin(), structure_boxes.end(), crack_boxes.begin(),
                            crack_boxes.end(), [&](const Box& s, const Box&) {
@@ -233,17 +230,8 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
                                                                           : other_faces)
         .push_back(f);
   }
-  // Closed: every edge has two faces.
-  std::vector<std::pair<int, int>> edges;
-  edges.reserve(3 * static_cast<size_t>(structure.num_faces()));
-  for (int f = 0; f < structure.num_faces(); ++f)
-    for (int k = 0; k < 3; ++k)
-      edges.push_back(std::minmax(structure.faces(f, k), structure.faces(f, (k + 1) % 3)));
-  std::sort(edges.begin(), edges.end());
-  bool closed = true;
-  for (size_t e = 0; e < edges.size() && closed; e += 2)
-    closed = e + 1 < edges.size() && edges[e + 1] == edges[e] &&
-             (e + 2 == edges.size() || edges[e + 2] != edges[e]);
+  const SurfaceTopology topology = AnalyzeSurface(structure);
+  const bool closed = topology.closed() && topology.num_nonmanifold_edges == 0;
 
   // The patch as a CGAL mesh: patch vertex j (before the split) is structure vertex
   // patch_vertex[j]; the vertices the split adds follow the structure's in the output.
@@ -390,7 +378,7 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
         for (int k = 0; k < 3; ++k) {
           VertexIndex from = face[k], to = face[(k + 1) % 3];
           if (side == 1) std::swap(from, to);  // the front side's cap is reversed
-          const int p = id_of(b.point(from)), q = id_of(b.point(to));
+          const int p = crack_id[from.idx()], q = crack_id[to.idx()];
           const auto e = open_edges.find({q, p});
           if (e == open_edges.end()) continue;
           by_side[{q, side}] = e->second.first;
@@ -440,7 +428,7 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
           // Shared: where the crack ends inside the structure (its front, or the organ's
           // surface when the structure reaches beyond it), or where the structure's split
           // ends (a curve vertex serving both sides).
-          const int key = id_of(b.point(w));
+          const int key = crack_id[w.idx()];
           const auto l = by_side.find({key, -1}), r = by_side.find({key, 1});
           const bool shared = b.is_border(w) ||
                               (l != by_side.end() && r != by_side.end() && l->second == r->second);
@@ -565,10 +553,10 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
   if (out.capped) {
     // Two caps describe two sides; where cracks branch inside the structure (three sheets on
     // one edge) the sides are more than two, which this construction cannot represent.
-    const SurfaceTopology topology = AnalyzeSurface(out.surface);
-    ARREG_CHECK_INPUT(topology.closed_oriented_manifold(), "", "SplitAlongCrack",
-                      "the split structure is not a closed manifold (", topology.num_boundary_edges,
-                      " open and ", topology.num_nonmanifold_edges,
+    const SurfaceTopology result = AnalyzeSurface(out.surface);
+    ARREG_CHECK_INPUT(result.closed_oriented_manifold(), "", "SplitAlongCrack",
+                      "the split structure is not a closed manifold (", result.num_boundary_edges,
+                      " open and ", result.num_nonmanifold_edges,
                       " non-manifold edges): cracks branch or touch inside it");
   }
   return out;
