@@ -66,6 +66,7 @@ int RunRun(int argc, char** argv) {
   int substeps = mechanics_defaults.substeps, crf = pipeline::OutputStageOptions().crf;
   double stiffness = 0, opacity = render_defaults.organ_opacity;
   double stiffness_relative = mechanics_defaults.spring_stiffness_relative;
+  double output_factor = mechanics_defaults.output_spring_factor;
   OptionParser parser(
       "arreg run --scene S.json --out DIR [options]",
       "Registers the scene's organ model to its video: tracks features, lifts them to 3D, "
@@ -95,6 +96,9 @@ int RunRun(int argc, char** argv) {
   parser.AddDouble("stiffness-relative", &stiffness_relative, "KAPPA",
                    "springs' total stiffness / (E x volume / seen area), dimensionless");
   parser.AddInt("substeps", &substeps, "N", "implicit Euler sub-steps per frame");
+  parser.AddDouble("output-spring-factor", &output_factor, "F",
+                   "output the quasi-static fit with F times stiffer springs; 0 = the "
+                   "dynamic model (docs/pipeline.md, \"Output fit\")");
   parser.AddString("lifting", &lifting, "surface|plane", "lifting target (default surface)");
   parser.AddString("lift-update", &lift_update, "intercept|raycast",
                    "surface target update (default intercept, thesis eq. 7.1)");
@@ -126,6 +130,7 @@ int RunRun(int argc, char** argv) {
   if (parser.Given("stiffness-relative"))
     options.mechanics.spring_stiffness_relative = stiffness_relative;
   if (parser.Given("substeps")) options.mechanics.substeps = substeps;
+  if (parser.Given("output-spring-factor")) options.mechanics.output_spring_factor = output_factor;
   if (parser.Given("lifting")) {
     ARREG_CHECK_INPUT(lifting == "surface" || lifting == "plane", "", "--lifting",
                       "expected surface or plane, got '", lifting, "'");

@@ -43,14 +43,16 @@ float Noise(const Eigen::Vector3d& p) {
   return (a * (1 - sx) + b * sx) * (1 - sy) + (c * (1 - sx) + d * sx) * sy;
 }
 
-// A 60 x 60 x 10 mm box seen from 200 mm, filmed while it shifts by shift_mm(frame) in x.
+// A 60 x 60 x 10 mm box (centred on the z axis, top face at z = 0) seen from 200 mm, filmed
+// while each point p moves to motion(p, frame).
 struct BoxScene {
   std::string dir;
   Scene scene;
 };
 
-BoxScene MakeBoxScene(const std::string& name, int frames,
-                      const std::function<double(int)>& shift_mm) {
+using BoxMotion = std::function<Eigen::RowVector3d(const Eigen::RowVector3d&, int)>;
+
+BoxScene MakeMovingBoxScene(const std::string& name, int frames, const BoxMotion& motion) {
   BoxScene b;
   b.dir = testing::ScratchDir(name);
   TetMesh mesh = MakeBoxTetMesh(Eigen::Vector3d(60, 60, 10), Eigen::Vector3i(6, 6, 1));
@@ -74,7 +76,7 @@ BoxScene MakeBoxScene(const std::string& name, int frames,
   writer.Open(b.dir + "/video.mp4", camera.width, camera.height, 25.0, wo);
   for (int f = 0; f < frames; ++f) {
     RowMatX3d moved = surface.vertices;
-    moved.col(0).array() += shift_mm(f);
+    for (int i = 0; i < moved.rows(); ++i) moved.row(i) = motion(surface.vertices.row(i), f);
     const RowMatX3d& rest = surface.vertices;
     const RowMatX3i& faces = surface.faces;
     render::RenderTarget target(raster, 2);
@@ -97,6 +99,14 @@ BoxScene MakeBoxScene(const std::string& name, int frames,
   std::ofstream(b.dir + "/scene.json") << j.dump(2);
   b.scene = ReadScene(b.dir + "/scene.json");
   return b;
+}
+
+// The box shifted by shift_mm(frame) in x.
+BoxScene MakeBoxScene(const std::string& name, int frames,
+                      const std::function<double(int)>& shift_mm) {
+  return MakeMovingBoxScene(name, frames, [&](const Eigen::RowVector3d& p, int f) {
+    return Eigen::RowVector3d(p + Eigen::RowVector3d(shift_mm(f), 0, 0));
+  });
 }
 
 class StopAfter : public FrameObserver {
@@ -207,6 +217,61 @@ TEST(Pipeline, FollowsARigidShift) {
   EXPECT_NEAR(moved.y(), 0.0, 0.3);
   EXPECT_NEAR(moved.z(), 0.0, 0.3);
   EXPECT_LT(probe.last_mean_mm, 0.3);
+}
+
+// Records, per frame, the shown configuration and the dynamic model.
+class ConfigurationProbe : public FrameObserver {
+ public:
+  void OnFrame(const FrameState& f) override {
+    shown.push_back(*f.positions);
+    dynamic.push_back(f.state->positions());
+    surface_matches = surface_matches && f.surface->vertices == *f.positions;
+    fit_status.push_back(f.stats.output_fit_status);
+  }
+  std::vector<RowMatX3d> shown, dynamic;
+  std::vector<std::string> fit_status;
+  bool surface_matches = true;
+};
+
+TEST(Pipeline, OutputFitChangesWhatIsShownOnly) {
+  // The box is stretched along x by 1 % a frame for 12 frames, then held. The output fit
+  // (docs/pipeline.md, "Output fit") moves what is drawn and saved; the dynamic model, which
+  // detection and lifting use, is the same as without it. With the fit off (factor 0) the
+  // dynamic model is shown. (That the fit follows the targets more closely is tested in
+  // tests/mechanics/quasi_static_fit_test.cc, its effect on accuracy in tests/e2e.)
+  const int frames = 14;
+  const BoxScene b =
+      MakeMovingBoxScene("pipeline_fit", frames, [](const Eigen::RowVector3d& p, int f) {
+        return Eigen::RowVector3d(p.x() * (1.0 + 0.01 * std::min(f, 12)), p.y(), p.z());
+      });
+  const std::string out = b.dir + "/run";
+  auto run = [&](double factor, bool record) {
+    PipelineOptions o = ReadPipelineOptions(b.scene);
+    o.render.enabled = false;
+    o.mechanics.output_spring_factor = factor;
+    ConfigurationProbe probe;
+    RecordWriter records(out, false);
+    RegistrationPipeline pipe(b.scene, o);
+    pipe.AddObserver(&probe);
+    if (record) pipe.AddObserver(&records);
+    RunOptions ro;
+    ro.save_every = 100;
+    EXPECT_EQ(pipe.Run(ro).frames, frames);
+    return probe;
+  };
+  const ConfigurationProbe fit = run(6.0, true), off = run(0.0, false);
+  EXPECT_TRUE(fit.surface_matches);
+  EXPECT_TRUE(off.surface_matches);
+  for (int f = 1; f < frames; ++f) {
+    EXPECT_EQ(fit.fit_status[f], "converged") << f;
+    EXPECT_TRUE(off.fit_status[f].empty()) << f;
+    EXPECT_EQ(off.shown[f], off.dynamic[f]) << f;
+    EXPECT_LT((fit.dynamic[f] - off.dynamic[f]).cwiseAbs().maxCoeff(), 1e-9) << f;
+    EXPECT_GT((fit.shown[f] - fit.dynamic[f]).cwiseAbs().maxCoeff(), 1e-3) << f;
+  }
+  // The saved meshes are the shown configuration.
+  const TetMesh saved = ReadTetMesh(out + "/mesh/" + "000013.vtk");
+  EXPECT_LT((saved.vertices - fit.shown.back()).cwiseAbs().maxCoeff(), 1e-5);
 }
 
 TEST(Pipeline, StopFlagEndsTheRunWithCompleteOutputs) {
@@ -390,11 +455,21 @@ TEST(PipelineOptions, SpringStiffnessKeysRoundTrip) {
   const nlohmann::json j = PipelineOptionsToJson(o);
   EXPECT_DOUBLE_EQ(j["mechanics"]["spring_stiffness_relative"].get<double>(), 40.0);
   EXPECT_DOUBLE_EQ(j["mechanics"]["spring_stiffness_n_per_m"].get<double>(), 800.0);
+  EXPECT_DOUBLE_EQ(o.mechanics.output_spring_factor, 6.0);
+  scene.mechanics = {{"output_spring_factor", 0.0}};
+  EXPECT_DOUBLE_EQ(ReadPipelineOptions(scene).mechanics.output_spring_factor, 0.0);
+  scene.mechanics = {{"output_spring_factor", 12.0}};
+  EXPECT_DOUBLE_EQ(
+      PipelineOptionsToJson(ReadPipelineOptions(scene))["mechanics"]["output_spring_factor"]
+          .get<double>(),
+      12.0);
 
   for (const auto& [key, value] : {std::pair<const char*, double>{"spring_stiffness_relative", 0.0},
                                    {"spring_stiffness_relative", -1.0},
                                    {"spring_stiffness_relative", std::nan("")},
-                                   {"spring_stiffness_n_per_m", -500.0}}) {
+                                   {"spring_stiffness_n_per_m", -500.0},
+                                   {"output_spring_factor", -1.0},
+                                   {"output_spring_factor", std::nan("")}}) {
     scene.mechanics = {{key, value}};
     try {
       ReadPipelineOptions(scene);

@@ -73,9 +73,10 @@ struct FrameStats {
   int lost = 0;            // features lost this frame (any reason)
   double spring_length_mean_mm = 0, spring_length_max_mm = 0;  // over alive springs
   int inverted_elements = 0;
-  std::string mechanics_status;  // StepStatusName of the integrator
-  int linear_iterations = 0;     // CG iterations of the step (0 with a direct solve)
-  int factorizations = 0;        // numeric Cholesky factorisations in the step
+  std::string mechanics_status;   // StepStatusName of the integrator
+  int linear_iterations = 0;      // CG iterations of the step (0 with a direct solve)
+  int factorizations = 0;         // numeric Cholesky factorisations in the step
+  std::string output_fit_status;  // StepStatusName of the output fit; empty when it is off
 };
 
 // Everything known about one frame; valid only during FrameObserver::OnFrame.
@@ -93,7 +94,10 @@ struct FrameState {
   const cutting::DetectionResult* detection = nullptr;
   const std::vector<CutEvent>* cut_events = nullptr;  // of this frame
   const SurfaceMesh* cut_surface = nullptr;           // last S (world), nullptr before any
-  const mechanics::MechanicalState* state = nullptr;  // the model (world, mm)
+  const mechanics::MechanicalState* state = nullptr;  // the dynamic model (world, mm)
+  // (#V x 3) the output configuration in mm (world): the output fit, else the state's
+  // positions. surface and internal are at these positions.
+  const RowMatX3d* positions = nullptr;
   const SurfaceMesh* surface = nullptr;  // boundary of the model, current positions (world)
   // Internal structures at their current positions (world), one per scene structure.
   const std::vector<SurfaceMesh>* internal = nullptr;

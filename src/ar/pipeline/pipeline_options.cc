@@ -16,6 +16,8 @@ void MechanicsStageOptions::Check() const {
                     "must be > 0 (absolute override) or 0 (use spring_stiffness_relative), got ",
                     spring_stiffness_n_per_m);
   ARREG_CHECK_INPUT(substeps >= 1, "", "mechanics.substeps", "must be >= 1, got ", substeps);
+  ARREG_CHECK_INPUT(std::isfinite(output_spring_factor) && output_spring_factor >= 0, "",
+                    "mechanics.output_spring_factor", "must be >= 0, got ", output_spring_factor);
   ARREG_CHECK_INPUT(newton_iterations >= 1, "", "mechanics.newton_iterations", "must be >= 1, got ",
                     newton_iterations);
   ARREG_CHECK_INPUT(std::isfinite(rayleigh_mass_per_s), "", "mechanics.rayleigh_mass_per_s",
@@ -166,6 +168,7 @@ void ReadMechanics(const Scene& scene, MechanicsStageOptions* o) {
   r.Optional("gravity_mm_per_s2", &o->gravity_mm_per_s2);
   r.Optional("fixed_vertices", &o->fixed_vertices);
   r.OptionalChoice("linear_solver", {"cholmod-pcg", "cholmod", "cg"}, &o->linear_solver);
+  r.Optional("output_spring_factor", &o->output_spring_factor);
   r.Finish();
 }
 
@@ -280,7 +283,8 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                     {"rayleigh_stiffness_s", o.mechanics.rayleigh_stiffness_s},
                     {"gravity_mm_per_s2", vec(o.mechanics.gravity_mm_per_s2)},
                     {"fixed_vertices", o.mechanics.fixed_vertices},
-                    {"linear_solver", o.mechanics.linear_solver}};
+                    {"linear_solver", o.mechanics.linear_solver},
+                    {"output_spring_factor", o.mechanics.output_spring_factor}};
   j["cutting"] = {
       {"enabled", o.cutting.enabled},
       {"neighbour_radius_mm", o.cutting.detector.neighbour_radius_mm},

@@ -48,6 +48,12 @@ struct MechanicsStageOptions {
   // frame's matrix, refactorised when CG slows down), "cholmod" (exact, refactorised
   // every step) or "cg" (block-Jacobi preconditioned).
   std::string linear_solver = "cholmod-pcg";
+  // What is drawn, saved and evaluated is, per frame, the quasi-static fit of the model to
+  // its springs made this many times stiffer (mechanics::QuasiStaticFit: one Newton step from
+  // the frame's state, same linear solver); cut detection, lifting and the next frame go on
+  // from the dynamic model, whose springs the detector's measure is calibrated on. 0 shows
+  // the dynamic model itself. Dimensionless, >= 0; default 6 (docs/pipeline.md, "Output fit").
+  double output_spring_factor = 6.0;
   void Check() const;
 };
 

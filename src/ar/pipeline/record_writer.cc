@@ -42,6 +42,7 @@ nlohmann::json FrameRecord(const FrameState& f) {
   j["inverted_elements"] = f.stats.inverted_elements;
   j["linear_iterations"] = f.stats.linear_iterations;
   j["factorizations"] = f.stats.factorizations;
+  if (!f.stats.output_fit_status.empty()) j["output_fit_status"] = f.stats.output_fit_status;
   nlohmann::json cuts = nlohmann::json::array();
   if (f.cut_events)
     for (const CutEvent& e : *f.cut_events) cuts.push_back(e.ToJson());
@@ -113,7 +114,9 @@ void RecordWriter::OnFrame(const FrameState& f) {
   jsonl_ << FrameRecord(f).dump() << '\n';
   ARREG_CHECK_INPUT(jsonl_.good(), out_dir_ + "/frames.jsonl", "", "write failed");
   if (f.save_meshes) {
-    WriteTetMesh(FramePath(out_dir_, "mesh", f.frame, ".vtk"), f.state->CurrentMesh());
+    TetMesh mesh = f.state->CurrentMesh();
+    if (f.positions) mesh.vertices = *f.positions;
+    WriteTetMesh(FramePath(out_dir_, "mesh", f.frame, ".vtk"), mesh);
     SurfaceMesh surface;
     surface.vertices = f.surface->vertices;
     surface.faces = f.surface->faces;

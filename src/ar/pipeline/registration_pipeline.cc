@@ -23,6 +23,7 @@
 #include "mechanics/embedding.h"
 #include "mechanics/integrator.h"
 #include "mechanics/mechanical_state.h"
+#include "mechanics/quasi_static_fit.h"
 #include "mechanics/spring_energy.h"
 #include "tracking/video_io.h"
 
@@ -197,6 +198,14 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       : o.mechanics.linear_solver == "cholmod" ? mechanics::LinearSolverType::kCholmod
                                                : mechanics::LinearSolverType::kCholmodPcg;
   mechanics::ImplicitEulerIntegrator integrator(io);
+  std::optional<mechanics::QuasiStaticFit> output_fit;
+  if (o.mechanics.output_spring_factor > 0) {
+    mechanics::QuasiStaticFitOptions fo;
+    fo.spring_factor = o.mechanics.output_spring_factor;
+    fo.linear_solver = io.linear_solver;
+    output_fit.emplace(fo);
+  }
+  std::vector<mechanics::EnergyTerm*> other_terms(terms.begin() + 1, terms.end());  // no springs
 
   SurfaceMesh surface = ExtractBoundary(state.CurrentMesh());
   const RowMatX3i frame0_faces = surface.faces;  // lifting keeps frame-0 connectivity
@@ -337,7 +346,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       t0 = now();
       cv::Mat frame_roi;
       if (o.roi_dilation_px >= 0) {
-        frame_roi = render::RenderMask(raster, surface.vertices, surface.faces);
+        frame_roi = render::RenderMask(raster, state.positions(), surface.faces);
         if (o.roi_dilation_px > 0)
           cv::dilate(
               frame_roi, frame_roi,
@@ -429,11 +438,18 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       ms.cutting = since(t0);
     }
 
-    // Update embedded structures and the boundary; statistics.
+    // The output configuration (docs/pipeline.md, "Output fit"), embedded structures, the
+    // boundary; statistics.
     t0 = now();
-    surface.vertices = state.positions();
+    const RowMatX3d* shown = &state.positions();
+    if (output_fit) {
+      const mechanics::StepSummary fit = output_fit->Fit(state, springs, other_terms);
+      stats.output_fit_status = mechanics::StepStatusName(fit.status);
+      shown = &output_fit->positions();
+    }
+    surface.vertices = *shown;
     for (size_t k = 0; k < internal.size(); ++k)
-      internal_embedding[k].Positions(state.positions(), state.tetrahedra(), &internal[k].vertices);
+      internal_embedding[k].Positions(*shown, state.tetrahedra(), &internal[k].vertices);
     double sum = 0;
     for (int r = 0; r < nf; ++r) {
       FeatureView& v = features[r];
@@ -488,6 +504,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     fs.cut_events = &events;
     fs.cut_surface = cut_surface ? &*cut_surface : nullptr;
     fs.state = &state;
+    fs.positions = shown;
     fs.surface = &surface;
     fs.internal = &internal;
     fs.internal_names = &impl_->model.internal_names;
