@@ -127,7 +127,7 @@ void Print(const char* title, const Measurement& m) {
 int RunBenchPipeline(int argc, char** argv) {
   std::string scene_path, json_path;
   int repeats = 3, frames = -1, crf = -1, max_features = -1, supersampling = 0;
-  double hessian_threshold = -1, min_distance_px = -1;
+  double hessian_threshold = -1, min_distance_px = -1, output_spring_factor = -1;
   bool no_topology = false;
   std::string clock = "wall";
   OptionParser parser(
@@ -150,6 +150,8 @@ int RunBenchPipeline(int argc, char** argv) {
   parser.AddDouble("min-distance", &min_distance_px, "PX", "tracking.min_distance_px");
   parser.AddInt("supersampling", &supersampling, "S",
                 "render.supersampling (1: analytic edge anti-aliasing, >= 2: reference)");
+  parser.AddDouble("output-spring-factor", &output_spring_factor, "F",
+                   "mechanics.output_spring_factor (0: output the dynamic model, no fit)");
   parser.AddString("clock", &clock, "wall|cpu",
                    "stage times on the wall clock or on the thread's CPU clock (busy machines)");
   if (!parser.Parse(argc, argv)) return 0;
@@ -171,6 +173,8 @@ int RunBenchPipeline(int argc, char** argv) {
     options.tracking.surf.hessian_threshold = hessian_threshold;
   if (parser.Given("min-distance")) options.tracking.min_distance_px = min_distance_px;
   if (parser.Given("supersampling")) options.render.supersampling = supersampling;
+  if (parser.Given("output-spring-factor"))
+    options.mechanics.output_spring_factor = output_spring_factor;
   if (no_topology) options.cutting.enabled = false;
   options.Check();
 
@@ -182,10 +186,11 @@ int RunBenchPipeline(int argc, char** argv) {
 
   std::printf(
       "scene %s: %dx%d, %d frames, %.0f alive features on average, topology %s, "
-      "%d repeats, %s clock, x264 %s crf %d, render supersampling %d\n",
+      "%d repeats, %s clock, x264 %s crf %d, render supersampling %d, output spring factor %g\n",
       scene_path.c_str(), scene.camera.width, scene.camera.height, with_video.frames,
       with_video.mean_features, options.cutting.enabled ? "on" : "off", repeats, clock.c_str(),
-      options.output.preset.c_str(), options.output.crf, options.render.supersampling);
+      options.output.preset.c_str(), options.output.crf, options.render.supersampling,
+      options.mechanics.output_spring_factor);
   Print("with overlay video (end to end):", with_video);
   Print("without video encoding:", without_video);
   Print("without rendering and encoding:", without_render);
@@ -204,6 +209,7 @@ int RunBenchPipeline(int argc, char** argv) {
     out["supersampling"] = options.render.supersampling;
     out["max_features"] = options.tracking.max_features;
     out["hessian_threshold"] = options.tracking.surf.hessian_threshold;
+    out["output_spring_factor"] = options.mechanics.output_spring_factor;
     out["with_video"] = Report(with_video);
     out["without_video"] = Report(without_video);
     out["without_render"] = Report(without_render);

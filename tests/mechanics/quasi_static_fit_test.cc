@@ -63,10 +63,8 @@ TEST(QuasiStaticFit, ConvergesToTheStaticEquilibriumWithStifferSprings) {
   StaticSolver solver{StaticSolverOptions{}};
   ASSERT_EQ(solver.Solve(&reference.state, &elastic, {&reference.springs}).status,
             StepStatus::kConverged);
-  const double moved = (reference.state.positions() - reference.state.rest_positions())
-                           .rowwise()
-                           .norm()
-                           .maxCoeff();
+  const double moved =
+      (reference.state.positions() - reference.state.rest_positions()).rowwise().norm().maxCoeff();
   ASSERT_GT(moved, 0.5);
   EXPECT_LT((fit.positions() - reference.state.positions()).rowwise().norm().maxCoeff(),
             1e-3 * moved);
@@ -125,7 +123,8 @@ TEST(QuasiStaticFit, KeepsFixedVerticesAndPiecesWithoutSprings) {
   SpringEnergy springs;
   RowMatX3d anchor(1, 3);
   anchor << 19, 5, 5;
-  const EmbeddedPoints e = EmbeddedPoints::Embed(anchor, state.rest_positions(), state.tetrahedra());
+  const EmbeddedPoints e =
+      EmbeddedPoints::Embed(anchor, state.rest_positions(), state.tetrahedra());
   springs.Add(e[0], Eigen::Vector3d(21, 5, 5), 50.0);
   GravityEnergy gravity(Eigen::Vector3d(0, 0, -9810));
   QuasiStaticFit fit{QuasiStaticFitOptions{}};
