@@ -38,10 +38,7 @@ StepSummary QuasiStaticFit::Fit(const MechanicalState& state, const SpringEnergy
     elastic_ = CorotationalElasticity(elastic_.options());
     source_topology_version_ = state.topology_version();
     source_tetrahedra_ = state.num_tetrahedra();
-    TetMesh mesh;
-    mesh.tetrahedra = state.tetrahedra();
-    mesh.vertices.setZero(state.num_vertices(), 3);
-    piece_ = ConnectedComponents(mesh, Adjacency::kVertex, &num_pieces_);
+    piece_ = ConnectedComponents(state.CurrentMesh(), Adjacency::kVertex, &num_pieces_);
   }
   copy_ = state;
   copy_->mutable_velocities().setZero();
@@ -52,11 +49,12 @@ StepSummary QuasiStaticFit::Fit(const MechanicalState& state, const SpringEnergy
   std::vector<EnergyTerm*> terms = {&springs_};
   terms.insert(terms.end(), other_terms.begin(), other_terms.end());
   const StepSummary summary = integrator_->Step(&*copy_, &elastic_, terms);
-  positions_ = copy_->positions();
-  if (summary.status == StepStatus::kLinearSolveFailed)
+  if (summary.status == StepStatus::kLinearSolveFailed) {
     positions_ = state.positions();
-  else
+  } else {
+    positions_ = copy_->positions();
     KeepUnheldPieces(state, springs);
+  }
   return summary;
 }
 

@@ -175,11 +175,13 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   mechanics::CorotationalElasticity elastic;
   mechanics::SpringEnergy springs;
   std::optional<mechanics::GravityEnergy> gravity;
-  std::vector<mechanics::EnergyTerm*> terms = {&springs};
+  std::vector<mechanics::EnergyTerm*> other_terms;  // all but the springs (the output fit's)
   if (o.mechanics.gravity_mm_per_s2.squaredNorm() > 0) {
     gravity.emplace(o.mechanics.gravity_mm_per_s2);
-    terms.push_back(&*gravity);
+    other_terms.push_back(&*gravity);
   }
+  std::vector<mechanics::EnergyTerm*> terms = {&springs};
+  terms.insert(terms.end(), other_terms.begin(), other_terms.end());
   mechanics::ImplicitEulerOptions io;
   io.dt_s = 1.0 / fps;
   io.substeps = o.mechanics.substeps;
@@ -205,7 +207,6 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     fo.linear_solver = io.linear_solver;
     output_fit.emplace(fo);
   }
-  std::vector<mechanics::EnergyTerm*> other_terms(terms.begin() + 1, terms.end());  // no springs
 
   SurfaceMesh surface = ExtractBoundary(state.CurrentMesh());
   const RowMatX3i frame0_faces = surface.faces;  // lifting keeps frame-0 connectivity
