@@ -20,8 +20,18 @@ CorotationalElasticity::CorotationalElasticity(const CorotationalOptions& option
   options_.Check();
 }
 
+bool CorotationalElasticity::UpdatedAt(const MechanicalState& state, const RowMatX3d& x) const {
+  return updated_state_ == &state && updated_version_ == state.topology_version() &&
+         static_cast<int>(rotations_.size()) == state.num_tetrahedra() &&
+         updated_positions_.rows() == x.rows() && updated_positions_ == x;
+}
+
 void CorotationalElasticity::Update(const MechanicalState& state, const RowMatX3d& x) {
   const int nt = state.num_tetrahedra();
+  if (UpdatedAt(state, x)) return;
+  updated_state_ = &state;
+  updated_version_ = state.topology_version();
+  updated_positions_ = x;
   if (static_cast<int>(rotations_.size()) != nt) {
     rotations_.resize(nt, Eigen::Matrix3d::Identity());
     quaternions_.resize(nt, Eigen::Quaterniond::Identity());
@@ -31,6 +41,7 @@ void CorotationalElasticity::Update(const MechanicalState& state, const RowMatX3
   const RowMatX4i& tets = state.tetrahedra();
   int inverted = 0;
   long long iterations = 0;
+  double energy = 0.0;
   // Chunks of elements: deformation gradients first, then the rotations of the
   // whole chunk (PolarRotations interleaves elements), then rotated gradients.
   constexpr int kChunk = 64;
@@ -53,10 +64,20 @@ void CorotationalElasticity::Update(const MechanicalState& state, const RowMatX3
         iterations += ExtractRotation(F[k], options_.rotation_method, &rotations_[begin + k],
                                       options_.polar_max_iterations, options_.polar_tolerance);
     }
-    for (int t = begin; t < begin + count; ++t)
-      rotated_gradients_[t].noalias() =
-          state.rest_data(t).shape_gradients * rotations_[t].transpose();
+    for (int k = 0; k < count; ++k) {
+      const int t = begin + k;
+      const TetRestData& rest = state.rest_data(t);
+      rotated_gradients_[t].noalias() = rest.shape_gradients * rotations_[t].transpose();
+      // The energy at x (CorotationalEnergy from this F), for Value at these positions.
+      const Eigen::Matrix3d G = rotations_[t].transpose() * F[k];
+      Eigen::Matrix3d eps = 0.5 * (G + G.transpose());
+      eps.diagonal().array() -= 1.0;
+      const double tr = eps.trace();
+      energy +=
+          rest.volume_mm3 * (rest.mu_kpa * eps.squaredNorm() + 0.5 * rest.lambda_kpa * tr * tr);
+    }
   }
+  energy_ = energy;
   num_inverted_ = inverted;
   mean_iterations_ = nt > 0 ? static_cast<double>(iterations) / nt : 0.0;
 }
@@ -64,6 +85,7 @@ void CorotationalElasticity::Update(const MechanicalState& state, const RowMatX3
 double CorotationalElasticity::Value(const MechanicalState& state, const RowMatX3d& x) const {
   ARREG_ASSERT(static_cast<int>(rotations_.size()) == state.num_tetrahedra(),
                "Update() not called after a topology change");
+  if (UpdatedAt(state, x)) return energy_;
   double e = 0.0;
   for (int t = 0; t < state.num_tetrahedra(); ++t)
     e += CorotationalEnergy(state.rest_data(t), rotations_[t], state.TetPositions(t, x));

@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cstdint>
 #include <vector>
 
 #include "mechanics/energy.h"
@@ -29,8 +30,11 @@ class CorotationalElasticity : public EnergyTerm {
   explicit CorotationalElasticity(const CorotationalOptions& options = {});
   std::string name() const override { return "corotational-elasticity"; }
 
-  // Recomputes R_e for every element from x (warm-started from the last ones).
+  // Recomputes R_e for every element from x (warm-started from the last ones); nothing when
+  // the last Update was at the same positions (bit for bit) of the same state and topology,
+  // as when an integrator's line search ends at the positions the next step starts from.
   void Update(const MechanicalState& state, const RowMatX3d& x) override;
+  // At the positions of the last Update, the energy that Update summed (no second pass).
   double Value(const MechanicalState& state, const RowMatX3d& x) const override;
   void AddGradient(const MechanicalState& state, const RowMatX3d& x,
                    RowMatX3d* gradient) const override;
@@ -51,6 +55,13 @@ class CorotationalElasticity : public EnergyTerm {
   std::vector<Eigen::Matrix<double, 4, 3>> rotated_gradients_;  // rows R g_a
   int num_inverted_ = 0;
   double mean_iterations_ = 0.0;
+  // The last Update was at x of this state (and its topology).
+  bool UpdatedAt(const MechanicalState& state, const RowMatX3d& x) const;
+  double energy_ = 0.0;  // the energy at the last Update's positions
+  // Where the rotations were last computed: the state, its topology version and x.
+  const MechanicalState* updated_state_ = nullptr;
+  std::uint64_t updated_version_ = 0;
+  RowMatX3d updated_positions_;
 };
 
 }  // namespace arreg::mechanics

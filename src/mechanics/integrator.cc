@@ -43,6 +43,14 @@ void TotalGradient(const MechanicalState& state, const RowMatX3d& x,
   for (const EnergyTerm* t : terms) t->AddGradient(state, x, g);
 }
 
+// Halvings of a Newton increment by the integrator's line search at most (the
+// shortest step is 1/64 of it).
+constexpr int kMaxLineSearchCuts = 6;
+// [mm] Newton increments below this are taken whole: near rest, Phi and its slope
+// along such an increment are at the round-off of the summed energies (1e-25 uJ
+// against slopes of 1e-25 on a 60 mm box at rest).
+constexpr double kLineSearchMinIncrementMm = 1e-6;
+
 StepStatus FromLinear(const LinearSolverSummary& s) {
   return s.status == LinearSolverStatus::kConverged ||
                  s.status == LinearSolverStatus::kMaxIterations
@@ -165,6 +173,7 @@ StepSummary ImplicitEulerIntegrator::Step(MechanicalState* state, CorotationalEl
     total.linear_solves += sub.linear_solves;
     total.factorizations += sub.factorizations;
     total.inverted_elements = sub.inverted_elements;
+    total.line_search_cuts += sub.line_search_cuts;
     total.last_increment_mm = sub.last_increment_mm;
     total.rotation_ms += sub.rotation_ms;
     total.assembly_ms += sub.assembly_ms;
@@ -202,6 +211,24 @@ StepSummary ImplicitEulerIntegrator::SubStep(MechanicalState* state,
   const int max_it = one_step ? 1 : options_.max_newton_iterations;
   summary.assembly_ms += MsSince(t);
 
+  // Phi(z): the inertia and damping terms about x_n (K0, the elastic stiffness at x_n, in
+  // k0_matrix_) plus the energies, whose terms must have been updated at z. The damping terms
+  // vanish at z = x_n.
+  const auto potential = [&](const RowMatX3d& z, bool at_start) {
+    tmp_ = z - x0;
+    trial_ = tmp_ - h * v0;
+    cache_.MultiplyMass(trial_, &inertia_);
+    double phi = 0.5 / (h * h) * Flat(trial_).dot(Flat(inertia_));
+    if (at_start) return phi + TotalEnergy(*state, z, *elastic, terms);
+    if (alpha > 0) {
+      cache_.MultiplyMass(tmp_, &inertia_);
+      phi += 0.5 * alpha / h * Flat(tmp_).dot(Flat(inertia_));
+    }
+    if (beta > 0) phi += 0.5 * beta / h * Flat(tmp_).dot(k0_matrix_ * Flat(tmp_));
+    return phi + TotalEnergy(*state, z, *elastic, terms);
+  };
+  const bool keep_k0 = beta > 0 && (max_it > 1 || options_.line_search);
+
   for (int it = 0; it < max_it; ++it) {
     t = Clock::now();
     UpdateTerms(*state, y, elastic, terms);
@@ -227,15 +254,13 @@ StepSummary ImplicitEulerIntegrator::SubStep(MechanicalState* state,
     if (beta > 0) {
       double* v = H.values();
       if (it == 0) {
-        // K0 is H itself here; only later Newton iterations need a copy of it (the one-step
-        // mode of the registration saves a matrix copy per step).
-        if (max_it > 1) {
-          k0_values_.assign(H.values(), H.values() + H.nonzeros());
-          k0_matrix_ = H.matrix();
-        }
+        // K0 is H itself here; only later Newton iterations and the line search need a copy
+        // of it (the one-step mode without line search saves a matrix copy per step).
+        if (keep_k0) k0_matrix_ = H.matrix();
         for (int k = 0; k < H.nonzeros(); ++k) v[k] *= 1.0 + beta / h;
       } else {
-        for (int k = 0; k < H.nonzeros(); ++k) v[k] += (beta / h) * k0_values_[k];
+        const double* k0 = k0_matrix_.valuePtr();
+        for (int k = 0; k < H.nonzeros(); ++k) v[k] += (beta / h) * k0[k];
       }
     }
     cache_.AddMass(mass_scale, &H);
@@ -270,8 +295,34 @@ StepSummary ImplicitEulerIntegrator::SubStep(MechanicalState* state,
                         (ls.message.empty() ? "" : " (" + ls.message + ")");
       return summary;  // state unchanged
     }
-    Flat(&y) += solution_;
     summary.last_increment_mm = solution_.cwiseAbs().maxCoeff();
+    // Armijo backtracking on Phi; skipped when the increment is no descent direction (an
+    // inexact iterative solve), where the full increment is all there is, and when it moves
+    // no vertex by kLineSearchMinIncrementMm, where round-off decides the test.
+    const double slope = -rhs_.dot(solution_);  // grad Phi . dy
+    if (options_.line_search && slope < 0.0 &&
+        summary.last_increment_mm > kLineSearchMinIncrementMm) {
+      t = Clock::now();
+      line_start_ = y;
+      const double phi0 = potential(y, it == 0);  // the terms are updated at y (above)
+      double step = 1.0;
+      for (int cut = 0;; ++cut) {
+        y = line_start_;
+        Flat(&y) += step * solution_;
+        UpdateTerms(*state, y, elastic, terms);
+        const double phi = potential(y, false);
+        // With an allowance for round-off in the summed potential, so that a step near the
+        // minimum is not rejected for noise; the smallest step is taken rather than none.
+        if (phi <= phi0 + 1e-4 * step * slope + 1e-10 * std::abs(phi0) || cut == kMaxLineSearchCuts)
+          break;
+        step *= 0.5;
+        ++summary.line_search_cuts;
+      }
+      summary.inverted_elements = elastic->num_inverted();
+      summary.rotation_ms += MsSince(t);
+    } else {
+      Flat(&y) += solution_;
+    }
     if (!one_step && summary.last_increment_mm < options_.newton_tolerance_mm) break;
     if (!one_step && it + 1 == max_it) summary.status = StepStatus::kMaxIterations;
   }

@@ -54,6 +54,14 @@ struct ImplicitEulerOptions {
   // Default CHOLMOD; relative_tolerance 1e-3 (DefaultStepSolverOptions).
   LinearSolverOptions linear_solver = DefaultStepSolverOptions();
   WarmStart warm_start = WarmStart::kExtrapolate;  // iterative solvers; default extrapolate
+  // Backtracking (Armijo) line search on Phi along each Newton increment, with
+  // the element rotations recomputed at every trial point. The warped stiffness
+  // neglects dR/dx; where rotations change fast within a step (a cut's free
+  // lips) the full increment can overshoot the minimum of Phi, and one step per
+  // frame then settles into a period-2 oscillation (docs/mechanics.md, "Line
+  // search"). A step that decreases Phi is taken whole, as without it.
+  // Default true.
+  bool line_search = true;
   void Check() const;
 };
 
@@ -71,6 +79,7 @@ struct StepSummary {
   int linear_solves = 0;
   int factorizations = 0;        // numeric Cholesky factorisations (cholmod, cholmod-pcg)
   int inverted_elements = 0;     // det F <= 0 at the last rotation update
+  int line_search_cuts = 0;      // halvings of Newton increments by the line search
   double last_increment_mm = 0;  // max |dy| of the last Newton iteration
   double rotation_ms = 0;        // element rotations (polar decompositions)
   double assembly_ms = 0;        // gradients, Hessian into slots, Dirichlet rows
@@ -126,10 +135,9 @@ class ImplicitEulerIntegrator {
   ImplicitEulerOptions options_;
   std::unique_ptr<LinearSolver> solver_;
   SystemCache cache_;
-  std::vector<double> k0_values_;  // elastic stiffness at x_n (damping)
-  SparseMatrixd k0_matrix_;
+  SparseMatrixd k0_matrix_;  // elastic stiffness at x_n (damping), H's pattern
   Eigen::VectorXd rhs_, solution_;
-  RowMatX3d gradient_, inertia_, tmp_;
+  RowMatX3d gradient_, inertia_, tmp_, trial_, line_start_;
   // WarmStart::kExtrapolate: v_{n-1}, and the v_n this integrator wrote (the
   // extrapolation is skipped when the caller changed the velocities since).
   RowMatX3d previous_velocity_, written_velocity_;

@@ -34,6 +34,7 @@ StepSummary QuasiStaticFit::Fit(const MechanicalState& state, const SpringEnergy
     io.max_newton_iterations = options_.newton_iterations;
     io.linear_solver = options_.linear_solver;
     io.warm_start = WarmStart::kVelocity;
+    io.line_search = options_.line_search;
     integrator_.emplace(io);
     elastic_ = CorotationalElasticity(elastic_.options());
     source_topology_version_ = state.topology_version();

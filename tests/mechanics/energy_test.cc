@@ -142,6 +142,36 @@ TEST(Elastic, PolarForceIsTheExactGradientWithRotationsRecomputed) {
   EXPECT_LT(RelativeError(analytic, numeric), 1e-6);
 }
 
+// Update skips the rotations when called again at the same positions of the same state (the
+// integrator's line search ends where the next step starts), and recomputes them otherwise.
+TEST(Elastic, UpdateAtTheSamePositionsKeepsTheRotations) {
+  MechanicalState state(SmallBox(), Material{5000, 0.3, 1000});
+  CorotationalElasticity elastic;
+  const RowMatX3d x = Perturbed(state.rest_positions(), 2.0, 3);
+  const RowMatX3d y = Perturbed(state.rest_positions(), 2.0, 4);
+  elastic.Update(state, x);
+  const std::vector<Eigen::Matrix3d> at_x = elastic.rotations();
+  elastic.Update(state, x);
+  EXPECT_EQ(elastic.rotations(), at_x);
+  elastic.Update(state, y);
+  double change = 0.0;
+  for (size_t t = 0; t < at_x.size(); ++t)
+    change = std::max(change, (elastic.rotations()[t] - at_x[t]).norm());
+  EXPECT_GT(change, 1e-3);
+  // Back at x: the same rotations as computed there (to the polar tolerance).
+  elastic.Update(state, x);
+  for (size_t t = 0; t < at_x.size(); ++t)
+    EXPECT_LT((elastic.rotations()[t] - at_x[t]).norm(), 1e-10) << "element " << t;
+  // Another state with the same positions but other rest positions: recomputed.
+  MechanicalState stretched(SmallBox({3, 2, 2}, {60, 20, 20}), Material{5000, 0.3, 1000});
+  ASSERT_EQ(stretched.num_vertices(), state.num_vertices());
+  elastic.Update(stretched, x);
+  double other = 0.0;
+  for (size_t t = 0; t < at_x.size(); ++t)
+    other = std::max(other, (elastic.rotations()[t] - at_x[t]).norm());
+  EXPECT_GT(other, 1e-3);
+}
+
 TEST(Springs, GradientAndHessianMatchFiniteDifferences) {
   const MechanicalState state(SmallBox({2, 1, 1}), Material{});
   SpringEnergy springs;

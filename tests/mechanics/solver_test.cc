@@ -392,5 +392,91 @@ TEST(Options, CheckRejectsBadValues) {
   EXPECT_THROW(ParseLinearSolverType("lu"), Error);
 }
 
+// A bar 80 x 8 x 8 mm held at both ends, stretched to `stretch` times its length and released
+// from a lateral sine bow of 5 mm (the material of the synthetic scenes: E = 100 kPa, nu = 0.45,
+// alpha = 0.1/s, beta = 0.01 s, 30 frames/s). Returns the midpoint's lateral offset per step.
+std::vector<double> ReleaseStretchedBar(double stretch, bool line_search, int steps,
+                                        MechanicalState* state_out, int* cuts) {
+  MechanicalState state(SmallBox({8, 1, 1}, {80, 8, 8}), Material{100000, 0.45, 1000});
+  RowMatX3d& x = state.mutable_positions();
+  int mid = -1;
+  for (int v = 0; v < state.num_vertices(); ++v) {
+    const Eigen::Vector3d r = state.rest_position(v);
+    if (r.x() == 0.0 || r.x() == 80.0) state.SetFixed(v, true);
+    if (r == Eigen::Vector3d(40, 8, 8)) mid = v;
+    x(v, 0) = stretch * r.x();
+    x(v, 2) = r.z() + 5.0 * std::sin(M_PI * r.x() / 80.0);
+  }
+  EXPECT_GE(mid, 0);
+  CorotationalElasticity elastic;
+  ImplicitEulerOptions o = StepOptions(LinearSolverType::kCholmod, Preconditioner::kJacobi);
+  o.dt_s = 1.0 / 30;
+  o.rayleigh_mass_alpha = 0.1;
+  o.rayleigh_stiffness_beta = 0.01;
+  o.line_search = line_search;
+  ImplicitEulerIntegrator integrator(o);
+  std::vector<double> offsets;
+  *cuts = 0;
+  for (int i = 0; i < steps; ++i) {
+    const StepSummary s = integrator.Step(&state, &elastic, {});
+    EXPECT_EQ(s.status, StepStatus::kConverged) << s.message;
+    *cuts += s.line_search_cuts;
+    offsets.push_back(state.position(mid).z() - 8.0);
+  }
+  if (state_out) *state_out = state;
+  return offsets;
+}
+
+// Under strong tension the warped stiffness underestimates the lateral stiffness (it neglects
+// dR/dx, and with it the tension's geometric stiffness), so one full Newton step per frame
+// overshoots the bar's straight equilibrium and settles into a period-2 oscillation, as the
+// free lips of a stretched, cut band did in the pipeline (docs/mechanics.md, "Line search").
+// The line search on Phi brings the bar to rest at the static equilibrium.
+TEST(Integrator, LineSearchStopsThePeriodTwoOscillationOfAStretchedBar) {
+  for (const double stretch : {1.5, 1.86}) {
+    SCOPED_TRACE(stretch);
+    int cuts = 0;
+    const std::vector<double> plain = ReleaseStretchedBar(stretch, false, 40, nullptr, &cuts);
+    EXPECT_EQ(cuts, 0);
+    // Without it: the midpoint jumps across the bar's axis every frame, by more than the bow.
+    for (size_t i = plain.size() - 10; i < plain.size(); ++i) {
+      EXPECT_LT(plain[i] * plain[i - 1], 0.0);
+      EXPECT_GT(std::abs(plain[i] - plain[i - 1]), 10.0);
+    }
+    MechanicalState state(SmallBox(), Material{});
+    const std::vector<double> searched = ReleaseStretchedBar(stretch, true, 40, &state, &cuts);
+    EXPECT_GT(cuts, 0);
+    for (size_t i = searched.size() - 10; i < searched.size(); ++i)
+      EXPECT_LT(std::abs(searched[i] - searched[i - 1]), 0.05);
+    // At rest where the static solver puts the bar (its Newton iterations with the warped
+    // stiffness stall at increments of ~1e-4 mm under this tension, so no tighter status).
+    MechanicalState equilibrium = state;
+    CorotationalElasticity elastic;
+    StaticSolverOptions so;
+    so.max_iterations = 1000;
+    StaticSolver statics(so);
+    EXPECT_LT(statics.Solve(&equilibrium, &elastic, {}).last_increment_mm, 1e-3);
+    EXPECT_LT((state.positions() - equilibrium.positions()).cwiseAbs().maxCoeff(), 0.05);
+  }
+}
+
+// Where the full Newton increment decreases Phi (a smooth, resolved motion), the line search
+// takes it whole: the steps are bit-identical to those without it.
+TEST(Integrator, LineSearchTakesEveryDescentStepWhole) {
+  SpringScene a, b;
+  ImplicitEulerOptions o = StepOptions(LinearSolverType::kCholmod, Preconditioner::kJacobi);
+  o.rayleigh_stiffness_beta = 0.01;
+  ImplicitEulerIntegrator searched(o);
+  o.line_search = false;
+  ImplicitEulerIntegrator plain(o);
+  for (int step = 0; step < 20; ++step) {
+    const StepSummary s = searched.Step(&a.state, &a.elastic, a.terms());
+    plain.Step(&b.state, &b.elastic, b.terms());
+    EXPECT_EQ(s.line_search_cuts, 0) << "step " << step;
+    ASSERT_EQ(a.state.positions(), b.state.positions()) << "step " << step;
+  }
+  EXPECT_GT((a.state.positions() - a.state.rest_positions()).norm(), 1.0);
+}
+
 }  // namespace
 }  // namespace arreg::mechanics
