@@ -463,6 +463,18 @@ TEST(PipelineOptions, SpringStiffnessKeysRoundTrip) {
       PipelineOptionsToJson(ReadPipelineOptions(scene))["mechanics"]["output_spring_factor"]
           .get<double>(),
       12.0);
+  EXPECT_TRUE(o.mechanics.line_search);
+  scene.mechanics = {{"line_search", false}};
+  EXPECT_FALSE(ReadPipelineOptions(scene).mechanics.line_search);
+  EXPECT_FALSE(
+      PipelineOptionsToJson(ReadPipelineOptions(scene))["mechanics"]["line_search"].get<bool>());
+  scene.mechanics = {{"line_search", "yes"}};
+  try {
+    ReadPipelineOptions(scene);
+    FAIL() << "line_search = \"yes\" was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("line_search"), std::string::npos) << e.what();
+  }
 
   for (const auto& [key, value] : {std::pair<const char*, double>{"spring_stiffness_relative", 0.0},
                                    {"spring_stiffness_relative", -1.0},

@@ -76,6 +76,7 @@ struct FrameStats {
   std::string mechanics_status;   // StepStatusName of the integrator
   int linear_iterations = 0;      // CG iterations of the step (0 with a direct solve)
   int factorizations = 0;         // numeric Cholesky factorisations in the step
+  int line_search_cuts = 0;       // halvings of the step's Newton increment (integrator)
   std::string output_fit_status;  // StepStatusName of the output fit; empty when it is off
 };
 

@@ -168,6 +168,7 @@ void ReadMechanics(const Scene& scene, MechanicsStageOptions* o) {
   r.Optional("gravity_mm_per_s2", &o->gravity_mm_per_s2);
   r.Optional("fixed_vertices", &o->fixed_vertices);
   r.OptionalChoice("linear_solver", {"cholmod-pcg", "cholmod", "cg"}, &o->linear_solver);
+  r.Optional("line_search", &o->line_search);
   r.Optional("output_spring_factor", &o->output_spring_factor);
   r.Finish();
 }
@@ -284,6 +285,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                     {"gravity_mm_per_s2", vec(o.mechanics.gravity_mm_per_s2)},
                     {"fixed_vertices", o.mechanics.fixed_vertices},
                     {"linear_solver", o.mechanics.linear_solver},
+                    {"line_search", o.mechanics.line_search},
                     {"output_spring_factor", o.mechanics.output_spring_factor}};
   j["cutting"] = {
       {"enabled", o.cutting.enabled},

@@ -48,6 +48,11 @@ struct MechanicsStageOptions {
   // frame's matrix, refactorised when CG slows down), "cholmod" (exact, refactorised
   // every step) or "cg" (block-Jacobi preconditioned).
   std::string linear_solver = "cholmod-pcg";
+  // Line search on the incremental potential along each Newton increment of the frame's step
+  // (mechanics::ImplicitEulerOptions::line_search; docs/mechanics.md, "Line search"): without
+  // it the free lips of a cut, stretched band swing in depth from frame to frame. The output
+  // fit takes its step whole (QuasiStaticFitOptions::line_search). Default true.
+  bool line_search = true;
   // What is drawn, saved and evaluated is, per frame, the quasi-static fit of the model to
   // its springs made this many times stiffer (mechanics::QuasiStaticFit: one Newton step from
   // the frame's state, same linear solver); cut detection, lifting and the next frame go on

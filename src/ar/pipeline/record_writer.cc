@@ -42,6 +42,7 @@ nlohmann::json FrameRecord(const FrameState& f) {
   j["inverted_elements"] = f.stats.inverted_elements;
   j["linear_iterations"] = f.stats.linear_iterations;
   j["factorizations"] = f.stats.factorizations;
+  j["line_search_cuts"] = f.stats.line_search_cuts;
   if (!f.stats.output_fit_status.empty()) j["output_fit_status"] = f.stats.output_fit_status;
   nlohmann::json cuts = nlohmann::json::array();
   if (f.cut_events)

@@ -199,6 +199,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       o.mechanics.linear_solver == "cg"        ? mechanics::LinearSolverType::kConjugateGradient
       : o.mechanics.linear_solver == "cholmod" ? mechanics::LinearSolverType::kCholmod
                                                : mechanics::LinearSolverType::kCholmodPcg;
+  io.line_search = o.mechanics.line_search;
   mechanics::ImplicitEulerIntegrator integrator(io);
   std::optional<mechanics::QuasiStaticFit> output_fit;
   if (o.mechanics.output_spring_factor > 0) {
@@ -401,6 +402,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       stats.inverted_elements = step.inverted_elements;
       stats.linear_iterations = step.linear_iterations;
       stats.factorizations = step.factorizations;
+      stats.line_search_cuts = step.line_search_cuts;
       ms.mechanics = since(t0);
     } else {
       stats.mechanics_status = mechanics::StepStatusName(mechanics::StepStatus::kConverged);
