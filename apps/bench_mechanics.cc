@@ -71,7 +71,7 @@ struct Figures {
   double ms_per_step_mean = 0, cpu_ms_per_step_mean = 0, cpu_ms_per_step_max = 0;
   double rotation_ms = 0, assembly_ms = 0, solve_ms = 0;
   double cg_iterations_mean = 0, rotation_iterations_mean = 0, max_displacement_mm = 0;
-  int inverted_elements = 0, factorizations = 0;
+  int inverted_elements = 0, factorizations = 0, line_search_cuts = 0;
   // --check-accuracy: per step, |y - y_ref| / |y_ref - x_n| of the benchmarked
   // step against one Newton step solved by exact Cholesky (solver error) and of
   // that against the fully converged implicit Euler step (linearisation error
@@ -88,7 +88,7 @@ struct BenchSettings {
   double dt_s = 1.0 / 30.0, stiffness = 10.0, youngs_pa = 3000.0, poisson = 0.45;
   double cg_tolerance = 1e-3, amplitude = 0.05;
   int refactor_iterations = 20;
-  bool refactor_by_cost = true, check_accuracy = false;
+  bool refactor_by_cost = true, check_accuracy = false, line_search = true;
   std::string warm_start = "extrapolate";
   unsigned seed = 1;
 };
@@ -121,6 +121,7 @@ Figures RunScene(const TetMesh& mesh, const BenchSettings& s) {
   options.linear_solver.refactor_iterations = s.refactor_iterations;
   options.linear_solver.refactor_by_cost = s.refactor_by_cost;
   options.warm_start = s.warm_start == "velocity" ? WarmStart::kVelocity : WarmStart::kExtrapolate;
+  options.line_search = s.line_search;
   // References for --check-accuracy: one Newton step by exact Cholesky, and
   // Newton iterated to convergence.
   ImplicitEulerOptions exact_options = options;
@@ -189,6 +190,7 @@ Figures RunScene(const TetMesh& mesh, const BenchSettings& s) {
       rotation_iterations += elastic.mean_rotation_iterations();
       ++timed_steps;
       f.inverted_elements = std::max(f.inverted_elements, summary.inverted_elements);
+      f.line_search_cuts += summary.line_search_cuts;
     }
     f.max_displacement_mm =
         (state.positions() - state.rest_positions()).rowwise().norm().maxCoeff();
@@ -226,6 +228,7 @@ nlohmann::json ToJson(const std::string& mesh, const BenchSettings& s, const Fig
                       {"rotation", s.rotation},
                       {"cg_tolerance", s.cg_tolerance},
                       {"warm_start", s.warm_start},
+                      {"line_search", s.line_search},
                       {"tets", f.tets},
                       {"dofs", f.dofs},
                       {"springs", f.springs},
@@ -246,7 +249,8 @@ nlohmann::json ToJson(const std::string& mesh, const BenchSettings& s, const Fig
                       {"factorizations", f.factorizations},
                       {"rotation_iterations_mean", f.rotation_iterations_mean},
                       {"max_displacement_mm", f.max_displacement_mm},
-                      {"inverted_elements", f.inverted_elements}};
+                      {"inverted_elements", f.inverted_elements},
+                      {"line_search_cuts", f.line_search_cuts}};
   if (f.accuracy_checked) {
     j["solver_error_median"] = f.solver_error_median;
     j["solver_error_max"] = f.solver_error_max;
@@ -307,7 +311,7 @@ int RunBenchMechanics(int argc, char** argv) {
   std::string mesh_spec, json_path, sweep_boxes;
   BenchSettings s;
   int seed = 1;
-  bool sweep = false, no_cost_refactor = false;
+  bool sweep = false, no_cost_refactor = false, no_line_search = false;
   OptionParser parser(
       "arreg bench mechanics --mesh M [--solver cg|cholmod|cholmod-pcg] [--steps N] [--json OUT]",
       "Times the registration's mechanical step: corotational tetrahedra pulled by "
@@ -333,6 +337,9 @@ int RunBenchMechanics(int argc, char** argv) {
   parser.AddString("warm-start", &s.warm_start, "W",
                    "iterative solvers' first guess: extrapolate (h (2 v_n - v_n-1)) or "
                    "velocity (h v_n)");
+  parser.AddFlag("no-line-search", &no_line_search,
+                 "take every Newton increment whole (no line search on the incremental "
+                 "potential, docs/mechanics.md \"Line search\")");
   parser.AddInt("steps", &s.steps, "N", "timed steps per run");
   parser.AddInt("repeats", &s.repeats, "N", "runs (medians over all timed steps)");
   parser.AddInt("springs", &s.springs, "N", "number of springs (features)");
@@ -360,7 +367,8 @@ int RunBenchMechanics(int argc, char** argv) {
       "(they include cholmod-pcg's occasional refactorisations), rotation_ms (polar\n"
       "decompositions), assembly_ms (gradients, Hessian into precomputed slots, Dirichlet\n"
       "rows), solve_ms (CHOLMOD numeric factorisation + solve, or warm-started CG),\n"
-      "cg_iterations_mean (0 for CHOLMOD), factorizations (numeric, over all timed steps).\n"
+      "cg_iterations_mean (0 for CHOLMOD), factorizations (numeric, over all timed steps),\n"
+      "line_search_cuts (halvings of Newton increments, over all timed steps).\n"
       "--sweep adds \"sweep\" (one entry per mesh) and \"growth_exponent\" to the JSON.\n"
       "Run with OMP_NUM_THREADS=1 for one thread.");
   if (!parser.Parse(argc, argv)) return 0;
@@ -386,6 +394,7 @@ int RunBenchMechanics(int argc, char** argv) {
   ParseCholmodFactorization(s.factorization);
   s.seed = static_cast<unsigned>(seed);
   s.refactor_by_cost = !no_cost_refactor;
+  s.line_search = !no_line_search;
   const std::vector<std::string> boxes = SplitCommas(
       sweep_boxes.empty() ? "box:10x3x3,box:14x4x4,box:17x5x5,box:20x6x6,box:23x7x7,box:25x8x8"
                           : sweep_boxes);
