@@ -332,13 +332,38 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
 
   // Cut points: the mean stays that of the frame while further points are inserted, and only the
   // pairs still present count (removed ones were pruned around earlier points).
-  candidates_ = result->outliers;
-  // Bridges continue a cut; they do not start one (see bridge_radius_factor): before the first
-  // point only pairs of C_F are candidates.
-  if (polyline_.empty())
-    candidates_.erase(std::remove_if(candidates_.begin(), candidates_.end(),
-                                     [&](int k) { return result->pairs[k].bridge; }),
-                      candidates_.end());
+  // Bridges continue a cut. Before the first point they are no candidates, except in a second
+  // pass of a frame where the pairs of C_F started nothing: there a point needs n pairs in its
+  // cluster, bridges included (see bridge_radius_factor).
+  const bool starting = polyline_.empty();
+  for (int pass = 0; pass < (starting ? 2 : 1) && result->new_cut_points.empty(); ++pass) {
+    const bool bridge_pass = pass == 1;
+    candidates_ = result->outliers;
+    if (starting && !bridge_pass)
+      candidates_.erase(std::remove_if(candidates_.begin(), candidates_.end(),
+                                       [&](int k) { return result->pairs[k].bridge; }),
+                        candidates_.end());
+    InsertCutPoints(bridge_pass, result);
+  }
+
+  // The growth probe, when C^t inserted nothing: the back extremity first, then the front.
+  if (result->new_cut_points.empty() && options_.probe_length_factor > 0.0 &&
+      polyline_.size() >= 2) {
+    for (const bool front : {false, true}) {
+      CutPoint point;
+      if (!ProbeGrowth(front, result, &point)) continue;
+      CommitCutPoint(point, front ? Placement::kFront : Placement::kBack, result);
+      break;
+    }
+  }
+
+  result->polyline_mm.clear();
+  for (const CutPoint& p : polyline_) result->polyline_mm.push_back(p.position_mm);
+  result->extended_polyline_mm = ExtendedPolyline(false);
+  ++frame_;
+}
+
+void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
   for (int inserted = 0; inserted < options_.max_cut_points_per_frame; ++inserted) {
     // Select a cluster and its point; clusters rejected as one feature's star, as one-sided or
     // as no growth of the polyline leave the candidates and the next one is tried.
@@ -376,13 +401,20 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
       // (pairs from the cut part to the whole part ahead are one-sided by construction).
       const bool grows = !polyline_.empty() && (NearExtremity(point, polyline_.front()) ||
                                                 NearExtremity(point, polyline_.back()));
-      // Bridges continue a cut; they do not start one (see bridge_radius_factor): a point that
-      // would start a polyline needs n among the cluster's pairs of C_F.
+      // A point that would start a polyline needs n among its cluster's pairs of C_F (weighted as
+      // any count); in the bridges' pass, n pairs, bridges included, counted one each as in the
+      // thesis (see bridge_radius_factor).
       if (!grows) {
-        cluster_of_cf_.clear();
-        for (int k : cluster_)
-          if (!result->pairs[k].bridge) cluster_of_cf_.push_back(k);
-        if (OutlierCount(cluster_of_cf_, *result) < options_.min_outliers) {
+        bool enough = false;
+        if (bridge_pass) {
+          enough = static_cast<int>(cluster_.size()) >= options_.min_outliers;
+        } else {
+          cluster_of_cf_.clear();
+          for (int k : cluster_)
+            if (!result->pairs[k].bridge) cluster_of_cf_.push_back(k);
+          enough = OutlierCount(cluster_of_cf_, *result) >= options_.min_outliers;
+        }
+        if (!enough) {
           ++result->refused_points;
           DropClusterFromCandidates();
           continue;
@@ -427,22 +459,6 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
                        }),
         candidates_.end());
   }
-
-  // The growth probe, when C^t inserted nothing: the back extremity first, then the front.
-  if (result->new_cut_points.empty() && options_.probe_length_factor > 0.0 &&
-      polyline_.size() >= 2) {
-    for (const bool front : {false, true}) {
-      CutPoint point;
-      if (!ProbeGrowth(front, result, &point)) continue;
-      CommitCutPoint(point, front ? Placement::kFront : Placement::kBack, result);
-      break;
-    }
-  }
-
-  result->polyline_mm.clear();
-  for (const CutPoint& p : polyline_) result->polyline_mm.push_back(p.position_mm);
-  result->extended_polyline_mm = ExtendedPolyline(false);
-  ++frame_;
 }
 
 double CutDetector::Measure(int l, int m) const {

@@ -158,11 +158,15 @@ struct CutDetectorOptions {
   // C_F spans the cut and the thesis's measure cannot see it grow (synthetic v-band: no pair
   // across the tear below its first 10 mm). A bridge takes the lost neighbour's place in the
   // same direction, so a pair that spanned the gap still does. Pairs never grow in number:
-  // each dead pair gives at most one bridge. Bridges only continue a cut: before the first cut
-  // point they are no candidates, and a point that would start a polyline needs n among its
-  // cluster's pairs of C_F (features also die where the strain concentrates; on band-stretch
-  // seed 4, after the stem corner's one-sided cluster had been rejected for 24 frames, a
-  // cluster with bridges there started a false cut). Default 2.
+  // each dead pair gives at most one bridge. Bridges continue a cut; a point that would start a
+  // polyline needs n among its cluster's pairs of C_F (weighted as any count), since features
+  // also die where the strain concentrates (on band-stretch seed 4, after the stem corner's
+  // one-sided cluster had been rejected for 24 frames, a cluster of 3 pairs with bridges there,
+  // weighted above n, started a false cut). Only while there is no polyline, and only in a
+  // frame where the pairs of C_F started none, a second pass takes the bridges as candidates
+  // too and starts one from a cluster of n pairs, counted one each as in the thesis: the lips'
+  // features can die before the cut opens enough to show (band-cut-v seeds 6 and 8: no pair of
+  // C_F is left across it). Default 2.
   double bridge_radius_factor = 2.0;
   // [deg] half-angle of the cone around a dead neighbour's direction searched for its bridge.
   // Default 30.
@@ -307,6 +311,11 @@ class CutDetector {
   }
   // mu of the pair (l, m) from this frame's positions (eq. 7.9-7.11).
   double Measure(int l, int m) const;
+  // Inserts up to max_cut_points_per_frame points from candidates_ (clusters, their tests, the
+  // polyline's growth rule, pair removal). In the bridges' pass (see bridge_radius_factor) a
+  // point that would start a polyline needs n pairs counted one each, else n among its pairs
+  // of C_F.
+  void InsertCutPoints(bool bridge_pass, DetectionResult* result);
   // The growth probe of an extremity (see CutDetectorOptions::probe_length_factor): evaluates
   // its pairs and fills *point when their count reaches n.
   bool ProbeGrowth(bool front, DetectionResult* result, CutPoint* point);
