@@ -480,23 +480,30 @@ TEST(CutDetector, SeamPulledApartGivesCutPointsAlongTheSeam) {
     }
 }
 
+// The tear of the seam tests whose lips the tracker loses: features within 10 mm of the seam,
+// beyond `from_mm` along it, die once the gap at their place is 1 mm wide. The uncut model spans
+// the band of lost features, pulled by the springs of the features beyond it: at 10 mm from the
+// seam it follows 1 - exp(-10 / 20) = 39 % of the opening.
+SeamScenario LostLipsScenario(unsigned seed, double from_mm) {
+  SeamScenario scenario;
+  scenario.seed = seed;
+  scenario.lip_loss_mm = 10.0;
+  scenario.lip_loss_from_mm = from_mm;
+  scenario.stiffness_mm = 20.0;
+  return scenario;
+}
+
 // A tear whose lips the tracker loses (as on the synthetic v-band, docs/detection.md): beyond
 // its first 30 mm every feature within 10 mm of the seam dies once the gap at its place is 1 mm
 // wide, before the opening stands out of the noise, so no pair of C_F (r_F = 3 spacings =
 // 14.4 mm) spans the seam behind the tip there. The pairs of C_F start the polyline on the first
-// 30 mm (bridges only continue a cut); the bridges of the dead pairs (up to 2 r_F) carry it
+// 30 mm; the bridges of the dead pairs (up to 2 r_F) carry it
 // along the seam; without bridges it stops near the start.
 TEST(CutDetector, LostLipFeaturesAreBridged) {
   const FeatureGrid g = MakeGrid();
   for (unsigned seed : {1u, 2u, 3u, 4u, 5u}) {
     SCOPED_TRACE("seed " + std::to_string(seed));
-    SeamScenario scenario;
-    scenario.seed = seed;
-    scenario.lip_loss_mm = 10.0;
-    scenario.lip_loss_from_mm = 30.0;
-    // The uncut model spans the band of lost features, pulled by the springs of the features
-    // beyond it: at 10 mm from the seam it follows 1 - exp(-10 / 20) = 39 % of the opening.
-    scenario.stiffness_mm = 20.0;
+    const SeamScenario scenario = LostLipsScenario(seed, 30.0);
     CutDetectorOptions no_bridges;
     no_bridges.bridge_radius_factor = 0.0;
     no_bridges.probe_length_factor = 0.0;  // the thesis's fixed C_F alone
@@ -531,15 +538,6 @@ TEST(CutDetector, LostLipFeaturesAreBridged) {
   }
 }
 
-// The same tear with its lips lost, followed by the growth probe alone (no bridges; without
-// either the polyline stops before 60 mm, above): long pairs (up to 3 r_F) across the
-// polyline's continuation ahead of its end still span the gap. Its points lie on the seam
-// (their position across the probe comes from the pairs' midpoints, so the polyline's
-// direction is corrected; from the crossings alone it drifted 22 mm off the seam in 90 mm),
-// never ahead of the tip, and the extended polyline follows the tip to within r_F + 2 r_pc
-// (measured: 13-22 mm behind on a 120 mm tear). Where the tear stops (70 mm), the probe stops
-// within 2 r_pc of it: pairs across the uncut band beyond the tip do not open.
-
 // The same tear with its lips lost from its first millimetre of opening (on band-cut-v seeds 6
 // and 8 the lips' features die before the cut opens enough to show, docs/detection.md): no pair
 // of C_F ever spans the seam, so the polyline can only start from bridges, which it does when
@@ -548,11 +546,7 @@ TEST(CutDetector, LipsLostFromTheStartAreBridgedIntoACut) {
   const FeatureGrid g = MakeGrid();
   for (unsigned seed : {1u, 2u, 3u, 4u, 5u}) {
     SCOPED_TRACE("seed " + std::to_string(seed));
-    SeamScenario scenario;
-    scenario.seed = seed;
-    scenario.lip_loss_mm = 10.0;
-    scenario.lip_loss_from_mm = -1e9;
-    scenario.stiffness_mm = 20.0;
+    const SeamScenario scenario = LostLipsScenario(seed, -1e9);
     CutDetectorOptions options;
     options.probe_length_factor = 0.0;
     const SeamRun run = RunSeam(g, scenario, options);
@@ -566,16 +560,21 @@ TEST(CutDetector, LipsLostFromTheStartAreBridgedIntoACut) {
     }
   }
 }
+
+// The same tear with its lips lost, followed by the growth probe alone (no bridges; without
+// either the polyline stops before 60 mm, above): long pairs (up to 3 r_F) across the
+// polyline's continuation ahead of its end still span the gap. Its points lie on the seam
+// (their position across the probe comes from the pairs' midpoints, so the polyline's
+// direction is corrected; from the crossings alone it drifted 22 mm off the seam in 90 mm),
+// never ahead of the tip, and the extended polyline follows the tip to within r_F + 2 r_pc
+// (measured: 13-22 mm behind on a 120 mm tear). Where the tear stops (70 mm), the probe stops
+// within 2 r_pc of it: pairs across the uncut band beyond the tip do not open.
 TEST(CutDetector, GrowthProbeFollowsATearWhoseLipsAreLost) {
   const FeatureGrid g = MakeGrid();
   for (unsigned seed : {1u, 2u, 3u, 4u, 5u})
     for (const double tip_end : {70.0, 120.0}) {
       SCOPED_TRACE("seed " + std::to_string(seed) + ", tear to " + std::to_string(tip_end));
-      SeamScenario scenario;
-      scenario.seed = seed;
-      scenario.lip_loss_mm = 10.0;
-      scenario.lip_loss_from_mm = 30.0;
-      scenario.stiffness_mm = 20.0;
+      SeamScenario scenario = LostLipsScenario(seed, 30.0);
       scenario.tip_end_mm = tip_end;
       CutDetectorOptions probe;
       probe.bridge_radius_factor = 0.0;
