@@ -305,12 +305,26 @@ StepSummary ImplicitEulerIntegrator::SubStep(MechanicalState* state,
       t = Clock::now();
       line_start_ = y;
       const double phi0 = potential(y, it == 0);  // the terms are updated at y (above)
+      // Elements inverted at the start enter the merit with their rotation there (the step's
+      // own quadratic model): along an increment that un-inverts one its rotation flips, and
+      // Phi with rotations recomputed rises before it falls.
+      frozen_.clear();
+      if (options_.freeze_inverted_rotations && elastic->num_inverted() > 0)
+        for (int e = 0; e < state->num_tetrahedra(); ++e)
+          if (DeformationGradient(state->rest_data(e), state->TetPositions(e, y)).determinant() <=
+              0.0)
+            frozen_.emplace_back(e, elastic->rotations()[e]);
       double step = 1.0;
       for (int cut = 0;; ++cut) {
         y = line_start_;
         Flat(&y) += step * solution_;
         UpdateTerms(*state, y, elastic, terms);
-        const double phi = potential(y, false);
+        double phi = potential(y, false);
+        for (const auto& [e, R0] : frozen_) {
+          const Eigen::Matrix<double, 4, 3> ye = state->TetPositions(e, y);
+          phi += CorotationalEnergy(state->rest_data(e), R0, ye) -
+                 CorotationalEnergy(state->rest_data(e), elastic->rotations()[e], ye);
+        }
         // With an allowance for round-off in the summed potential, so that a step near the
         // minimum is not rejected for noise; the smallest step is taken rather than none.
         if (phi <= phi0 + 1e-4 * step * slope + 1e-10 * std::abs(phi0) || cut == kMaxLineSearchCuts)

@@ -62,6 +62,9 @@ struct ImplicitEulerOptions {
   // search"). A step that decreases Phi is taken whole, as without it.
   // Default true.
   bool line_search = true;
+  // In the line search's merit, elements inverted at the increment's start keep their rotation
+  // there (docs/mechanics.md, "Line search"); false recomputes theirs too. Default true.
+  bool freeze_inverted_rotations = true;
   void Check() const;
 };
 
@@ -138,6 +141,7 @@ class ImplicitEulerIntegrator {
   SparseMatrixd k0_matrix_;  // elastic stiffness at x_n (damping), H's pattern
   Eigen::VectorXd rhs_, solution_;
   RowMatX3d gradient_, inertia_, tmp_, trial_, line_start_;
+  std::vector<std::pair<int, Eigen::Matrix3d>> frozen_;
   // WarmStart::kExtrapolate: v_{n-1}, and the v_n this integrator wrote (the
   // extrapolation is skipped when the caller changed the velocities since).
   RowMatX3d previous_velocity_, written_velocity_;
