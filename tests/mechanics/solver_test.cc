@@ -393,6 +393,16 @@ TEST(Options, CheckRejectsBadValues) {
   EXPECT_THROW(ParseLinearSolverType("lu"), Error);
 }
 
+// The integrator as the registration runs it on the synthetic scenes' material: 30 frames/s,
+// alpha = 0.1/s, beta = 0.01 s (exact Cholesky).
+ImplicitEulerOptions SceneStepOptions() {
+  ImplicitEulerOptions o = StepOptions(LinearSolverType::kCholmod, Preconditioner::kJacobi);
+  o.dt_s = 1.0 / 30;
+  o.rayleigh_mass_alpha = 0.1;
+  o.rayleigh_stiffness_beta = 0.01;
+  return o;
+}
+
 // A bar 80 x 8 x 8 mm held at both ends, stretched to `stretch` times its length and released
 // from a lateral sine bow of 5 mm (the material of the synthetic scenes: E = 100 kPa, nu = 0.45,
 // alpha = 0.1/s, beta = 0.01 s, 30 frames/s). Returns the midpoint's lateral offset per step.
@@ -410,10 +420,7 @@ std::vector<double> ReleaseStretchedBar(double stretch, bool line_search, int st
   }
   EXPECT_GE(mid, 0);
   CorotationalElasticity elastic;
-  ImplicitEulerOptions o = StepOptions(LinearSolverType::kCholmod, Preconditioner::kJacobi);
-  o.dt_s = 1.0 / 30;
-  o.rayleigh_mass_alpha = 0.1;
-  o.rayleigh_stiffness_beta = 0.01;
+  ImplicitEulerOptions o = SceneStepOptions();
   o.line_search = line_search;
   ImplicitEulerIntegrator integrator(o);
   std::vector<double> offsets;
@@ -499,10 +506,7 @@ int PullThroughStretchedBar(bool freeze, int* inverted_at_end) {
   springs.Add(e[0], Eigen::Vector3d(54, 10, -30), 2000.0);
   springs.Add(e[1], Eigen::Vector3d(36, 0, -30), 2000.0);
   CorotationalElasticity elastic;
-  ImplicitEulerOptions o = StepOptions(LinearSolverType::kCholmod, Preconditioner::kJacobi);
-  o.dt_s = 1.0 / 30;
-  o.rayleigh_mass_alpha = 0.1;
-  o.rayleigh_stiffness_beta = 0.01;
+  ImplicitEulerOptions o = SceneStepOptions();
   o.freeze_inverted_rotations = freeze;
   ImplicitEulerIntegrator integrator(o);
   int cuts = 0;
