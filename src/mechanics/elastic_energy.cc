@@ -39,7 +39,7 @@ void CorotationalElasticity::Update(const MechanicalState& state, const RowMatX3
   }
   const bool polar = options_.rotation_method == RotationMethod::kPolar;
   const RowMatX4i& tets = state.tetrahedra();
-  int inverted = 0;
+  inverted_.clear();
   long long iterations = 0;
   double energy = 0.0;
   // Chunks of elements: deformation gradients first, then the rotations of the
@@ -54,7 +54,7 @@ void CorotationalElasticity::Update(const MechanicalState& state, const RowMatX3
       // F = sum_a x_a g_a^T.
       F[k].noalias() = x.row(tets(t, 0)).transpose() * g.row(0);
       for (int a = 1; a < 4; ++a) F[k].noalias() += x.row(tets(t, a)).transpose() * g.row(a);
-      if (F[k].determinant() <= 0.0) ++inverted;
+      if (F[k].determinant() <= 0.0) inverted_.push_back(t);
     }
     if (polar) {
       iterations += PolarRotations(count, F, &quaternions_[begin], &rotations_[begin],
@@ -68,17 +68,10 @@ void CorotationalElasticity::Update(const MechanicalState& state, const RowMatX3
       const int t = begin + k;
       const TetRestData& rest = state.rest_data(t);
       rotated_gradients_[t].noalias() = rest.shape_gradients * rotations_[t].transpose();
-      // The energy at x (CorotationalEnergy from this F), for Value at these positions.
-      const Eigen::Matrix3d G = rotations_[t].transpose() * F[k];
-      Eigen::Matrix3d eps = 0.5 * (G + G.transpose());
-      eps.diagonal().array() -= 1.0;
-      const double tr = eps.trace();
-      energy +=
-          rest.volume_mm3 * (rest.mu_kpa * eps.squaredNorm() + 0.5 * rest.lambda_kpa * tr * tr);
+      energy += CorotationalEnergyOfF(rest, rotations_[t], F[k]);  // for Value at x
     }
   }
   energy_ = energy;
-  num_inverted_ = inverted;
   mean_iterations_ = nt > 0 ? static_cast<double>(iterations) / nt : 0.0;
 }
 

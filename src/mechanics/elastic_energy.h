@@ -43,7 +43,8 @@ class CorotationalElasticity : public EnergyTerm {
 
   const std::vector<Eigen::Matrix3d>& rotations() const { return rotations_; }
   // Elements with det F <= 0 at the last Update().
-  int num_inverted() const { return num_inverted_; }
+  int num_inverted() const { return static_cast<int>(inverted_.size()); }
+  const std::vector<int>& inverted() const { return inverted_; }  // their indices, ascending
   // Mean polar iterations per element at the last Update().
   double mean_rotation_iterations() const { return mean_iterations_; }
   const CorotationalOptions& options() const { return options_; }
@@ -53,7 +54,7 @@ class CorotationalElasticity : public EnergyTerm {
   std::vector<Eigen::Matrix3d> rotations_;
   std::vector<Eigen::Quaterniond> quaternions_;  // kPolar: the same rotations (warm starts)
   std::vector<Eigen::Matrix<double, 4, 3>> rotated_gradients_;  // rows R g_a
-  int num_inverted_ = 0;
+  std::vector<int> inverted_;  // elements with det F <= 0 at the last Update()
   double mean_iterations_ = 0.0;
   // The last Update was at x of this state (and its topology).
   bool UpdatedAt(const MechanicalState& state, const RowMatX3d& x) const;

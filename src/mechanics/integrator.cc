@@ -219,12 +219,11 @@ StepSummary ImplicitEulerIntegrator::SubStep(MechanicalState* state,
     trial_ = tmp_ - h * v0;
     cache_.MultiplyMass(trial_, &inertia_);
     double phi = 0.5 / (h * h) * Flat(trial_).dot(Flat(inertia_));
-    if (at_start) return phi + TotalEnergy(*state, z, *elastic, terms);
-    if (alpha > 0) {
+    if (!at_start && alpha > 0) {
       cache_.MultiplyMass(tmp_, &inertia_);
       phi += 0.5 * alpha / h * Flat(tmp_).dot(Flat(inertia_));
     }
-    if (beta > 0) phi += 0.5 * beta / h * Flat(tmp_).dot(k0_matrix_ * Flat(tmp_));
+    if (!at_start && beta > 0) phi += 0.5 * beta / h * Flat(tmp_).dot(k0_matrix_ * Flat(tmp_));
     return phi + TotalEnergy(*state, z, *elastic, terms);
   };
   const bool keep_k0 = beta > 0 && (max_it > 1 || options_.line_search);
@@ -309,11 +308,8 @@ StepSummary ImplicitEulerIntegrator::SubStep(MechanicalState* state,
       // own quadratic model): along an increment that un-inverts one its rotation flips, and
       // Phi with rotations recomputed rises before it falls.
       frozen_.clear();
-      if (options_.freeze_inverted_rotations && elastic->num_inverted() > 0)
-        for (int e = 0; e < state->num_tetrahedra(); ++e)
-          if (DeformationGradient(state->rest_data(e), state->TetPositions(e, y)).determinant() <=
-              0.0)
-            frozen_.emplace_back(e, elastic->rotations()[e]);
+      if (options_.freeze_inverted_rotations)
+        for (const int e : elastic->inverted()) frozen_.emplace_back(e, elastic->rotations()[e]);
       double step = 1.0;
       for (int cut = 0;; ++cut) {
         y = line_start_;

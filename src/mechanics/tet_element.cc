@@ -250,20 +250,28 @@ int ExtractRotation(const Eigen::Matrix3d& F, RotationMethod method, Eigen::Matr
 
 namespace {
 // Small strain of the unrotated element: eps = sym(R^T F - I).
-Eigen::Matrix3d CorotatedStrain(const TetRestData& rest, const Eigen::Matrix3d& R,
-                                const Eigen::Matrix<double, 4, 3>& x) {
-  const Eigen::Matrix3d G = R.transpose() * DeformationGradient(rest, x);
+Eigen::Matrix3d CorotatedStrainOfF(const Eigen::Matrix3d& R, const Eigen::Matrix3d& F) {
+  const Eigen::Matrix3d G = R.transpose() * F;
   Eigen::Matrix3d eps = 0.5 * (G + G.transpose());
   eps.diagonal().array() -= 1.0;
   return eps;
 }
+Eigen::Matrix3d CorotatedStrain(const TetRestData& rest, const Eigen::Matrix3d& R,
+                                const Eigen::Matrix<double, 4, 3>& x) {
+  return CorotatedStrainOfF(R, DeformationGradient(rest, x));
+}
 }  // namespace
+
+double CorotationalEnergyOfF(const TetRestData& rest, const Eigen::Matrix3d& R,
+                             const Eigen::Matrix3d& F) {
+  const Eigen::Matrix3d eps = CorotatedStrainOfF(R, F);
+  const double tr = eps.trace();
+  return rest.volume_mm3 * (rest.mu_kpa * eps.squaredNorm() + 0.5 * rest.lambda_kpa * tr * tr);
+}
 
 double CorotationalEnergy(const TetRestData& rest, const Eigen::Matrix3d& R,
                           const Eigen::Matrix<double, 4, 3>& x) {
-  const Eigen::Matrix3d eps = CorotatedStrain(rest, R, x);
-  const double tr = eps.trace();
-  return rest.volume_mm3 * (rest.mu_kpa * eps.squaredNorm() + 0.5 * rest.lambda_kpa * tr * tr);
+  return CorotationalEnergyOfF(rest, R, DeformationGradient(rest, x));
 }
 
 void AddCorotationalGradient(const TetRestData& rest, const Eigen::Matrix3d& R,

@@ -85,6 +85,9 @@ int PolarRotations(int count, const Eigen::Matrix3d* F, Eigen::Quaterniond* rota
 // Corotational energy with the rotation R held fixed:
 //   E_e(x) = V (mu eps:eps + lambda/2 tr(eps)^2),  eps = sym(R^T F(x) - I)
 // equal to 1/2 u^T K_e u with u = R^T x - X. Units: uJ.
+// The same from the element's deformation gradient F.
+double CorotationalEnergyOfF(const TetRestData& rest, const Eigen::Matrix3d& R,
+                             const Eigen::Matrix3d& F);
 double CorotationalEnergy(const TetRestData& rest, const Eigen::Matrix3d& R,
                           const Eigen::Matrix<double, 4, 3>& x);
 
