@@ -97,6 +97,53 @@ Mesh CrackToMesh(const SurfaceMesh& crack, const std::vector<bool>& kept) {
   return m;
 }
 
+// Where three or more of the crack's `kept` faces share an edge, keeps the two that continue
+// each other most nearly straight across it and clears the others from `kept`; returns how many
+// it cleared. Such an edge is where the cutter unsewed a face across a fold of S (all three of
+// its vertices within the on-surface tolerance, the face itself tilted across the slab): an
+// element then hangs between two sheets of the crack, which has three sides there, while a
+// split structure has two. Not split along a cleared face, the structure stays whole across it,
+// and the element between the sheets carries it with the side that element is attached to.
+int DropCrackBranches(const SurfaceMesh& crack, std::vector<bool>* kept) {
+  std::map<std::pair<int, int>, std::vector<int>> edge_faces;
+  for (int f = 0; f < crack.num_faces(); ++f) {
+    if (!(*kept)[f]) continue;
+    for (int k = 0; k < 3; ++k) {
+      const int u = crack.faces(f, k), w = crack.faces(f, (k + 1) % 3);
+      edge_faces[std::minmax(u, w)].push_back(f);
+    }
+  }
+  std::vector<int> branches;
+  for (const auto& [edge, around] : edge_faces) {
+    if (around.size() <= 2) continue;
+    const Eigen::Vector3d a = crack.vertices.row(edge.first).transpose();
+    const Eigen::Vector3d t = (crack.vertices.row(edge.second).transpose() - a).normalized();
+    // Unit direction from the edge into each face, perpendicular to the edge.
+    std::vector<Eigen::Vector3d> wing;
+    for (int f : around) {
+      int c = crack.faces(f, 0);
+      for (int k = 1; c == edge.first || c == edge.second; ++k) c = crack.faces(f, k);
+      Eigen::Vector3d d = crack.vertices.row(c).transpose() - a;
+      wing.push_back((d - d.dot(t) * t).normalized());
+    }
+    size_t keep_i = 0, keep_j = 1;
+    for (size_t i = 0; i < around.size(); ++i)
+      for (size_t j = i + 1; j < around.size(); ++j)
+        if (wing[i].dot(wing[j]) < wing[keep_i].dot(wing[keep_j])) {
+          keep_i = i;
+          keep_j = j;
+        }
+    for (size_t i = 0; i < around.size(); ++i)
+      if (i != keep_i && i != keep_j) branches.push_back(around[i]);
+  }
+  int cleared = 0;
+  for (int f : branches) {
+    cleared += (*kept)[f] ? 1 : 0;
+    (*kept)[f] = false;
+  }
+  return cleared;
+}
+
 // Area-weighted normal of the faces around v (length 2 x area).
 Eigen::Vector3d VertexNormal(const Mesh& m, VertexIndex v) {
   Eigen::Vector3d n = Eigen::Vector3d::Zero();
@@ -217,6 +264,10 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
                      [&](const Box& b) { return !CGAL::do_overlap(b.bbox(), structure_box); }),
       crack_boxes.end());
   for (const Box& b : crack_boxes) crack_kept[b.info()] = true;
+  if (DropCrackBranches(crack, &crack_kept) > 0)
+    crack_boxes.erase(std::remove_if(crack_boxes.begin(), crack_boxes.end(),
+                                     [&](const Box& b) { return !crack_kept[b.info()]; }),
+                      crack_boxes.end());
   std::vector<bool> near_vertex(n_structure, false);
   CGAL::box_intersection_d(structure_boxes.begin(), structure_boxes.end(), crack_boxes.begin(),
                            crack_boxes.end(), [&](const Box& s, const Box&) {

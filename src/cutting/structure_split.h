@@ -35,8 +35,9 @@ struct SplitStructure {
 // crack's front, where the model is not split, both caps share their vertices. A structure the
 // crack does not reach comes back unchanged. Throws arreg::Error when CGAL cannot represent the
 // inputs as meshes or the corefinement fails (e.g. self-intersecting inputs), and when a closed
-// structure would not stay a closed manifold (cracks that branch inside it: more than two
-// sides).
+// structure would not stay a closed manifold (cracks that touch inside it). Where three or more
+// crack faces share an edge (a branch: more than two sides), the structure is split along the
+// two that continue each other most nearly straight and stays whole across the others.
 SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& crack,
                                double offset_mm);
 

@@ -199,6 +199,45 @@ TEST(StructureSplit, CurvePieceOfOneEdgeIsSplitAtItsMidpoint) {
   EXPECT_LT(sides[0] * sides[1], 0);
 }
 
+// Where a face of the crack branches off a sheet (three faces on one edge: the cutter unsewed a
+// face tilted across a fold of S, and an element hangs between two sheets), the structure is
+// split along the sheet and not along the branch: the same closed pieces as without the branch,
+// instead of a refusal (kidney-cut seed 6 lost 49 triangles of its structure to that refusal).
+TEST(StructureSplit, BranchOffTheCrackIsNotSplitAlong) {
+  const Eigen::Vector3d center(20, 15, 15);
+  const SurfaceMesh ball = MakeUvSphere(center, 8, 14, 28);
+  const CutBox block = CutBlock(MakePlaneSurface({20.3, 15, 15}, {1, 0, 0}, 100, 100, {0, 1, 0}));
+  const SurfaceMesh crack = CrackSurface(block.rest);
+  const double offset = 1e-4 * block.mean_edge_mm;
+  const SplitStructure plain = SplitAlongCrack(ball, crack, offset);
+  ASSERT_TRUE(AnalyzeSurface(plain.surface).closed_oriented_manifold());
+  // Branches on crack edges deep inside the ball, each a triangle leaning 3 mm off the plane.
+  int branches = 0;
+  for (int f = 0; f < crack.num_faces() && branches < 3; ++f) {
+    const Eigen::Vector3d a = crack.vertices.row(crack.faces(f, 0)).transpose();
+    const Eigen::Vector3d b = crack.vertices.row(crack.faces(f, 1)).transpose();
+    if (((a + b) / 2 - center).norm() > 5) continue;
+    SurfaceMesh branched = crack;
+    const Eigen::Vector3d along = (b - a).normalized();
+    const Eigen::Vector3d c =
+        (a + b) / 2 + 3 * Eigen::Vector3d(1, 0, 0) + 2 * along.cross(Eigen::Vector3d(1, 0, 0));
+    branched.vertices.conservativeResize(crack.vertices.rows() + 1, 3);
+    branched.vertices.row(crack.vertices.rows()) = c.transpose();
+    branched.faces.conservativeResize(crack.num_faces() + 1, 3);
+    branched.faces.row(crack.num_faces()) << crack.faces(f, 1), crack.faces(f, 0),
+        static_cast<int>(crack.vertices.rows());
+    ASSERT_EQ(AnalyzeSurface(branched).num_nonmanifold_edges, 1);
+    SCOPED_TRACE(::testing::Message() << "branch on the edge of crack face " << f);
+    const SplitStructure split = SplitAlongCrack(ball, branched, offset);
+    EXPECT_TRUE(split.capped);
+    EXPECT_EQ(split.cap_faces, plain.cap_faces);
+    EXPECT_EQ(split.surface.faces, plain.surface.faces);
+    EXPECT_EQ(split.surface.vertices, plain.surface.vertices);
+    ++branches;
+  }
+  EXPECT_EQ(branches, 3);
+}
+
 // The crack of a block cut through by the plane x = 20.3 is that plane's section of the block
 // (30 x 30 mm); an uncut mesh has none.
 TEST(StructureSplit, CrackSurfaceIsTheCutSection) {
@@ -217,8 +256,9 @@ TEST(StructureSplit, CrackSurfaceIsTheCutSection) {
 
 // Balls split along the cracks of random planes, partial planes and spheres through the SOFA
 // liver (unstructured elements, snapping on): every split is a closed oriented manifold with
-// the ball's volume, and every vertex is carried by its element where it is. A split is
-// refused (an error) only where cracks branch inside the ball.
+// the ball's volume, and every vertex is carried by its element where it is. None is refused
+// (case 19, a sphere folded by snapping into three crack sheets on one edge, was until the
+// branches were left out of the split).
 TEST(StructureSplit, LiverRandomCracksGiveClosedStructures) {
   ARREG_REQUIRE_SHARED(path, "meshes/sofa/liver.msh");
   TetMesh liver = ReadTetMesh(path);
@@ -320,7 +360,7 @@ TEST(StructureSplit, LiverRandomCracksGiveClosedStructures) {
       "their embedding\n",
       cut_cases, split_cases, refused, kept_total, vertices_total);
   EXPECT_GE(split_cases, 40);
-  EXPECT_LE(refused, 4);
+  EXPECT_EQ(refused, 0);
 }
 
 }  // namespace
