@@ -403,7 +403,9 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
                                                 NearExtremity(point, polyline_.back()));
       // A point that would start a polyline needs n among its cluster's pairs of C_F (weighted as
       // any count); in the bridges' pass, n pairs, bridges included, counted one each as in the
-      // thesis (see bridge_radius_factor).
+      // thesis (see bridge_radius_factor). One that would replace a lone first point (nothing is
+      // cut yet) may have either: the tracker may lose the lips beyond that point too widely for
+      // bridges, and the bridges farther along the cut are then no growth of it.
       if (!grows) {
         bool enough = false;
         if (bridge_pass) {
@@ -412,7 +414,9 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
           cluster_of_cf_.clear();
           for (int k : cluster_)
             if (!result->pairs[k].bridge) cluster_of_cf_.push_back(k);
-          enough = OutlierCount(cluster_of_cf_, *result) >= options_.min_outliers;
+          enough =
+              OutlierCount(cluster_of_cf_, *result) >= options_.min_outliers ||
+              (polyline_.size() == 1 && static_cast<int>(cluster_.size()) >= options_.min_outliers);
         }
         if (!enough) {
           ++result->refused_points;

@@ -166,7 +166,10 @@ struct CutDetectorOptions {
   // frame where the pairs of C_F started none, a second pass takes the bridges as candidates
   // too and starts one from a cluster of n pairs, counted one each as in the thesis: the lips'
   // features can die before the cut opens enough to show (band-cut-v seeds 6 and 8: no pair of
-  // C_F is left across it). Default 2.
+  // C_F is left across it). Likewise a point that would replace a lone first point (nothing
+  // cut yet) needs n among its pairs of C_F or n pairs counted one each: the lips beyond that
+  // point can be lost too widely for bridges, and the bridges farther along are then no growth
+  // of it (band-cut-v seed 11). Default 2.
   double bridge_radius_factor = 2.0;
   // [deg] half-angle of the cone around a dead neighbour's direction searched for its bridge.
   // Default 30.
@@ -314,7 +317,7 @@ class CutDetector {
   // Inserts up to max_cut_points_per_frame points from candidates_ (clusters, their tests, the
   // polyline's growth rule, pair removal). In the bridges' pass (see bridge_radius_factor) a
   // point that would start a polyline needs n pairs counted one each, else n among its pairs
-  // of C_F.
+  // of C_F, or either when it would replace a lone first point.
   void InsertCutPoints(bool bridge_pass, DetectionResult* result);
   // The growth probe of an extremity (see CutDetectorOptions::probe_length_factor): evaluates
   // its pairs and fills *point when their count reaches n.

@@ -82,6 +82,10 @@ struct SeamScenario {
   // the gap at their place is 1 mm wide (the tracker loses the lips of a tear; 0: none die).
   double lip_loss_mm = 0.0;
   double lip_loss_from_mm = 0.0;
+  // Up to wide_loss_to_mm along the seam (and beyond lip_loss_from_mm) the features closer than
+  // wide_loss_mm die likewise: a stretch where the tracker loses both lips too widely for bridges.
+  double wide_loss_mm = 0.0;
+  double wide_loss_to_mm = 0.0;
 
   // Width [mm] of the gap at arc length `along` when the tip is at `tip`. Behind the start
   // (beyond the border, where the grid's far corners lie) the halves move as at the start.
@@ -142,7 +146,9 @@ SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOp
     std::vector<int> rows;
     for (int r = 0; r < n; ++r) {
       const Eigen::Vector2d c = s.Coordinates(g.p0.row(r).transpose());
-      if (alive[r] && std::abs(c.y()) < s.lip_loss_mm && c.x() > s.lip_loss_from_mm &&
+      const double loss =
+          c.x() < s.wide_loss_to_mm ? std::max(s.lip_loss_mm, s.wide_loss_mm) : s.lip_loss_mm;
+      if (alive[r] && std::abs(c.y()) < loss && c.x() > s.lip_loss_from_mm &&
           s.Opening(c.x(), tip) >= 1.0) {
         alive[r] = 0;
         ++run.died;
@@ -558,6 +564,46 @@ TEST(CutDetector, LipsLostFromTheStartAreBridgedIntoACut) {
       EXPECT_LT(std::abs(c.y()), run.resolved.cut_point_radius_mm) << "cut point " << i;
       EXPECT_LT(c.x(), run.tip_at_point[i] + run.resolved.cut_point_radius_mm) << "cut point " << i;
     }
+  }
+}
+
+// The same tear with a first point from its first millimetres (lips lost beyond 5 mm), then a
+// 45 mm stretch where the tracker loses every feature within 14 mm of the seam: no pair of C_F
+// and no bridge (at most 2 r_F = 28.8 mm) spans it, so the first point never grows, and the
+// bridges beyond it (lips lost within 10 mm only) lie farther than the growth radius from it
+// (band-cut-v seed 11: a first point at the top edge, then 40 frames of nothing). While the
+// polyline is that lone point, a far cluster of n pairs, bridges counted one each, replaces it,
+// as one of n pairs of C_F does, and the polyline follows the rest of the tear. With the pairs
+// of C_F alone (the rule before) the lone point stayed the only one (checked).
+TEST(CutDetector, LonePointIsReplacedByBridgesBeyondAGap) {
+  const FeatureGrid g = MakeGrid();
+  for (unsigned seed : {1u, 2u, 3u, 4u, 5u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    SeamScenario scenario = LostLipsScenario(seed, 5.0);
+    scenario.wide_loss_mm = 14.0;
+    scenario.wide_loss_to_mm = 50.0;
+    CutDetectorOptions options;
+    options.probe_length_factor = 0.0;
+    const SeamRun run = RunSeam(g, scenario, options);
+    const CutDetectorOptions& resolved = run.resolved;
+    ASSERT_GE(run.points.size(), 4u);
+    // The first point near the start; the next one replaced it, beyond the gap.
+    EXPECT_LT(scenario.Coordinates(run.points[0].initial_position_mm).x(), 10.0);
+    const double growth = resolved.cut_point_radius_mm + 1.5 * resolved.neighbour_radius_mm;
+    EXPECT_GT((run.points[1].initial_position_mm - run.points[0].initial_position_mm).norm(),
+              growth);
+    for (size_t i = 0; i < run.points.size(); ++i) {
+      const Eigen::Vector2d c = scenario.Coordinates(run.points[i].initial_position_mm);
+      EXPECT_LT(std::abs(c.y()), resolved.cut_point_radius_mm) << "cut point " << i;
+      EXPECT_LT(c.x(), run.tip_at_point[i] + resolved.cut_point_radius_mm) << "cut point " << i;
+      if (i > 1) {
+        EXPECT_GT(c.x(), scenario.Coordinates(run.points[i - 1].initial_position_mm).x());
+      }
+    }
+    // The polyline (from the second point on) follows the tear as with bridges alone.
+    EXPECT_GT(
+        scenario.Coordinates(run.extended_initial.back()).x(),
+        scenario.tip_end_mm - 2 * resolved.cut_point_radius_mm - resolved.neighbour_radius_mm);
   }
 }
 
