@@ -499,6 +499,21 @@ SeamScenario LostLipsScenario(unsigned seed, double from_mm) {
   return scenario;
 }
 
+// Every cut point of `run` from index `from` on lies on the seam (within r_pc across it), not
+// ahead of the tip at its insertion, and beyond the point before it.
+void ExpectPointsFollowTheSeam(const SeamScenario& scenario, const SeamRun& run, size_t from) {
+  const double r_pc = run.resolved.cut_point_radius_mm;
+  for (size_t i = from; i < run.points.size(); ++i) {
+    const Eigen::Vector2d c = scenario.Coordinates(run.points[i].initial_position_mm);
+    EXPECT_LT(std::abs(c.y()), r_pc) << "cut point " << i;
+    EXPECT_LT(c.x(), run.tip_at_point[i] + r_pc) << "cut point " << i;
+    if (i > from) {
+      EXPECT_GT(c.x(), scenario.Coordinates(run.points[i - 1].initial_position_mm).x())
+          << "cut point " << i;
+    }
+  }
+}
+
 // A tear whose lips the tracker loses (as on the synthetic v-band, docs/detection.md): beyond
 // its first 30 mm every feature within 10 mm of the seam dies once the gap at its place is 1 mm
 // wide, before the opening stands out of the noise, so no pair of C_F (r_F = 3 spacings =
@@ -527,15 +542,9 @@ TEST(CutDetector, LostLipFeaturesAreBridged) {
     EXPECT_EQ(run.died, without.died);
     EXPECT_GT(run.bridged, 0);
     ASSERT_GE(run.points.size(), 5u) << "the 125 mm cut should give a polyline";
-    for (size_t i = 0; i < run.points.size(); ++i) {
-      const Eigen::Vector2d c = scenario.Coordinates(run.points[i].initial_position_mm);
-      EXPECT_LT(std::abs(c.y()), options.cut_point_radius_mm) << "cut point " << i;
-      EXPECT_LT(c.x(), run.tip_at_point[i] + options.cut_point_radius_mm) << "cut point " << i;
-      EXPECT_GT(c.x(), -options.cut_point_radius_mm);
-      if (i > 0) {
-        EXPECT_GT(c.x(), scenario.Coordinates(run.points[i - 1].initial_position_mm).x());
-      }
-    }
+    ExpectPointsFollowTheSeam(scenario, run, 0);
+    EXPECT_GT(scenario.Coordinates(run.points[0].initial_position_mm).x(),
+              -options.cut_point_radius_mm);
     // Bridges span the 20 mm band of lost features, so the gap must open wider before they
     // stand out: the extended polyline lags the tip by up to r_F more than with the lips
     // tracked (2 r_pc there; 16 mm measured here).
@@ -592,14 +601,9 @@ TEST(CutDetector, LonePointIsReplacedByBridgesBeyondAGap) {
     const double growth = resolved.cut_point_radius_mm + 1.5 * resolved.neighbour_radius_mm;
     EXPECT_GT((run.points[1].initial_position_mm - run.points[0].initial_position_mm).norm(),
               growth);
-    for (size_t i = 0; i < run.points.size(); ++i) {
-      const Eigen::Vector2d c = scenario.Coordinates(run.points[i].initial_position_mm);
-      EXPECT_LT(std::abs(c.y()), resolved.cut_point_radius_mm) << "cut point " << i;
-      EXPECT_LT(c.x(), run.tip_at_point[i] + resolved.cut_point_radius_mm) << "cut point " << i;
-      if (i > 1) {
-        EXPECT_GT(c.x(), scenario.Coordinates(run.points[i - 1].initial_position_mm).x());
-      }
-    }
+    EXPECT_LT(std::abs(scenario.Coordinates(run.points[0].initial_position_mm).y()),
+              resolved.cut_point_radius_mm);
+    ExpectPointsFollowTheSeam(scenario, run, 1);
     // The polyline (from the second point on) follows the tear as with bridges alone.
     EXPECT_GT(
         scenario.Coordinates(run.extended_initial.back()).x(),
@@ -628,14 +632,7 @@ TEST(CutDetector, GrowthProbeFollowsATearWhoseLipsAreLost) {
       const CutDetectorOptions& options = run.resolved;
       EXPECT_EQ(run.bridged, 0);
       ASSERT_GE(run.points.size(), 3u);
-      for (size_t i = 0; i < run.points.size(); ++i) {
-        const Eigen::Vector2d c = scenario.Coordinates(run.points[i].initial_position_mm);
-        EXPECT_LT(std::abs(c.y()), options.cut_point_radius_mm) << "cut point " << i;
-        EXPECT_LT(c.x(), run.tip_at_point[i] + options.cut_point_radius_mm) << "cut point " << i;
-        if (i > 0) {
-          EXPECT_GT(c.x(), scenario.Coordinates(run.points[i - 1].initial_position_mm).x());
-        }
-      }
+      ExpectPointsFollowTheSeam(scenario, run, 0);
       const double end = scenario.Coordinates(run.extended_initial.back()).x();
       EXPECT_GT(end, tip_end - 2 * options.cut_point_radius_mm - options.neighbour_radius_mm);
       EXPECT_LT(end, tip_end + 2 * options.cut_point_radius_mm);
