@@ -144,6 +144,84 @@ int DropCrackBranches(const SurfaceMesh& crack, std::vector<bool>* kept) {
   return cleared;
 }
 
+// Two flaws of a split closed structure where the crack touches the structure's surface, mended
+// in place (positions are not changed, so neither is the enclosed volume):
+// - a face and its exact reverse (same three vertices), as where both caps run over a part of
+//   the crack whose vertices serve both sides: a double layer enclosing nothing; both go;
+// - a face cut loose along all of the curve, as a structure triangle lying in the crack: its
+//   open edges run, with other vertices at the same positions, opposite to open edges of the
+//   faces around the hole it left; their vertices are merged into those of the hole's faces.
+void MendCoincidences(const std::vector<Eigen::Vector3d>& positions,
+                      std::vector<std::array<int, 3>>* faces) {
+  const auto sorted = [](std::array<int, 3> f) {
+    std::sort(f.begin(), f.end());
+    return f;
+  };
+  // Double layers: faces with the same vertex set and opposite orientations.
+  std::map<std::array<int, 3>, std::vector<size_t>> by_vertices;
+  for (size_t f = 0; f < faces->size(); ++f) by_vertices[sorted((*faces)[f])].push_back(f);
+  std::vector<bool> drop(faces->size(), false);
+  const auto rotations_of = [](const std::array<int, 3>& f) {
+    return std::array<std::array<int, 3>, 3>{
+        {{f[0], f[1], f[2]}, {f[1], f[2], f[0]}, {f[2], f[0], f[1]}}};
+  };
+  for (const auto& [key, list] : by_vertices) {
+    if (list.size() != 2) continue;
+    const std::array<int, 3>& f = (*faces)[list[0]];
+    const std::array<int, 3> reversed = {(*faces)[list[1]][0], (*faces)[list[1]][2],
+                                         (*faces)[list[1]][1]};
+    const auto r = rotations_of(f);
+    if (std::find(r.begin(), r.end(), reversed) == r.end()) continue;  // same orientation
+    drop[list[0]] = drop[list[1]] = true;
+  }
+  std::vector<std::array<int, 3>> kept;
+  for (size_t f = 0; f < faces->size(); ++f)
+    if (!drop[f]) kept.push_back((*faces)[f]);
+  faces->swap(kept);
+
+  // Open half-edges (no face runs the other way along them) and the vertices they may merge.
+  std::map<std::pair<int, int>, int> directed;
+  std::vector<int> uses(positions.size(), 0);
+  for (const auto& f : *faces)
+    for (int k = 0; k < 3; ++k) {
+      ++directed[{f[k], f[(k + 1) % 3]}];
+      ++uses[f[k]];
+    }
+  std::map<std::pair<Key, Key>, std::vector<std::pair<int, int>>> open_by_position;
+  for (const auto& [edge, count] : directed)
+    if (count == 1 && !directed.count({edge.second, edge.first}))
+      open_by_position[{KeyOf(positions[edge.first]), KeyOf(positions[edge.second])}].push_back(
+          edge);
+  std::vector<int> merged(positions.size());
+  for (size_t v = 0; v < merged.size(); ++v) merged[v] = static_cast<int>(v);
+  const auto root = [&](int v) {
+    while (merged[v] != v) v = merged[v];
+    return v;
+  };
+  bool any = false;
+  for (const auto& [key, list] : open_by_position) {
+    if (list.size() != 1) continue;
+    const auto other = open_by_position.find({key.second, key.first});
+    if (other == open_by_position.end() || other->second.size() != 1) continue;
+    const auto [u, w] = list[0];
+    const auto [w2, u2] = other->second[0];
+    for (const auto& [a, b] : {std::make_pair(u, u2), std::make_pair(w, w2)}) {
+      const int ra = root(a), rb = root(b);
+      if (ra == rb) continue;
+      // The vertex of more faces stays (the hole's side, whose embedding offset it keeps).
+      if (uses[ra] >= uses[rb]) {
+        merged[rb] = ra;
+      } else {
+        merged[ra] = rb;
+      }
+      any = true;
+    }
+  }
+  if (!any) return;
+  for (auto& f : *faces)
+    for (int& v : f) v = root(v);
+}
+
 // Area-weighted normal of the faces around v (length 2 x area).
 Eigen::Vector3d VertexNormal(const Mesh& m, VertexIndex v) {
   Eigen::Vector3d n = Eigen::Vector3d::Zero();
@@ -592,6 +670,7 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
     }
   }
 
+  if (out.capped) MendCoincidences(positions, &faces);
   out.surface.vertices.resize(static_cast<Eigen::Index>(positions.size()), 3);
   out.embed_at_mm.resize(out.surface.vertices.rows(), 3);
   for (size_t i = 0; i < positions.size(); ++i) {

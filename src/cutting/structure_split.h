@@ -37,7 +37,9 @@ struct SplitStructure {
 // inputs as meshes or the corefinement fails (e.g. self-intersecting inputs), and when a closed
 // structure would not stay a closed manifold (cracks that touch inside it). Where three or more
 // crack faces share an edge (a branch: more than two sides), the structure is split along the
-// two that continue each other most nearly straight and stays whole across the others.
+// two that continue each other most nearly straight and stays whole across the others. Where
+// the crack touches the structure's surface, a double layer (a face and its exact reverse) is
+// removed and a face cut loose along all its edges is joined back to the faces around its hole.
 SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& crack,
                                double offset_mm);
 
