@@ -121,9 +121,12 @@ int DropCrackBranches(const SurfaceMesh& crack, std::vector<bool>* kept) {
     // Unit direction from the edge into each face, perpendicular to the edge.
     std::vector<Eigen::Vector3d> wing;
     for (int f : around) {
-      int c = crack.faces(f, 0);
-      for (int k = 1; c == edge.first || c == edge.second; ++k) c = crack.faces(f, k);
-      Eigen::Vector3d d = crack.vertices.row(c).transpose() - a;
+      int c = -1;  // the face's third vertex (a face with a repeated vertex has none)
+      for (int k = 0; k < 3; ++k)
+        if (crack.faces(f, k) != edge.first && crack.faces(f, k) != edge.second)
+          c = crack.faces(f, k);
+      const Eigen::Vector3d d =
+          c >= 0 ? Eigen::Vector3d(crack.vertices.row(c).transpose() - a) : Eigen::Vector3d::Zero();
       wing.push_back((d - d.dot(t) * t).normalized());
     }
     size_t keep_i = 0, keep_j = 1;
