@@ -430,7 +430,7 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
         DropClusterFromCandidates();
         continue;
       }
-      placement = PlaceCutPoint(point);
+      placement = PlaceCutPoint(point, *result);
       if (placement == Placement::kRefuse) {
         ++result->refused_points;
         DropClusterFromCandidates();
@@ -788,7 +788,21 @@ void CutDetector::RemovePairsNear(const Eigen::Vector3d& centre_mm, int* removed
   *removed += static_cast<int>(before - pairs_.size());
 }
 
-CutDetector::Placement CutDetector::PlaceCutPoint(const CutPoint& point) const {
+bool CutDetector::LonePointSupported(const DetectionResult& result) const {
+  const double growth_mm = options_.cut_point_radius_mm + 1.5 * options_.neighbour_radius_mm;
+  const Eigen::Vector3d& lone = polyline_[0].initial_position_mm;
+  for (int k : result.outliers) {
+    if (std::find(cluster_.begin(), cluster_.end(), k) != cluster_.end()) continue;
+    const FeaturePair& p = result.pairs[k];
+    const Eigen::Vector3d mid =
+        0.5 * (initial_mm_.row(p.first) + initial_mm_.row(p.second)).transpose();
+    if ((mid - lone).squaredNorm() <= growth_mm * growth_mm) return true;
+  }
+  return false;
+}
+
+CutDetector::Placement CutDetector::PlaceCutPoint(const CutPoint& point,
+                                                  const DetectionResult& result) const {
   if (polyline_.empty()) return Placement::kBack;
   const double to_front = (point.position_mm - polyline_.front().position_mm).squaredNorm();
   const double to_back = (point.position_mm - polyline_.back().position_mm).squaredNorm();
@@ -796,7 +810,10 @@ CutDetector::Placement CutDetector::PlaceCutPoint(const CutPoint& point) const {
   if (!options_.grow_at_extremities_only) return nearest;
   const Eigen::Vector3d& p = point.initial_position_mm;
   const auto near = [&](const CutPoint& end) { return NearExtremity(point, end); };
-  if (polyline_.size() == 1) return near(polyline_[0]) ? Placement::kBack : Placement::kReplace;
+  if (polyline_.size() == 1) {
+    if (near(polyline_[0])) return Placement::kBack;
+    return LonePointSupported(result) ? Placement::kRefuse : Placement::kReplace;
+  }
   // Joining at an extremity must not turn the polyline back by more than 90 degrees.
   const size_t last = polyline_.size() - 1;
   const auto continues = [&](bool front) {

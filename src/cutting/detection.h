@@ -122,7 +122,9 @@ struct CutDetectorOptions {
   // keeps its evidence) and the next cluster is selected. While the polyline is a single point
   // (nothing has been cut yet), a far point replaces it: a cut keeps producing outliers along
   // itself, and a lone point that got no continuation within its growth radius is not the
-  // cut's. Not in the thesis, whose nearest-extremity rule joins any point; false restores it.
+  // cut's; while an outlier of the frame (outside the far point's cluster) still lies within
+  // that radius, its cut still opens there and the far point is refused instead. Not in the
+  // thesis, whose nearest-extremity rule joins any point; false restores it.
   // Default true.
   bool grow_at_extremities_only = true;
   // Absolute floor on mu [mm]: pairs at or below it are never outliers. Not in the thesis, whose
@@ -280,7 +282,10 @@ class CutDetector {
   void RemovePairsNear(const Eigen::Vector3d& centre_mm, int* removed);
   // Where a new cut point goes (see CutDetectorOptions::grow_at_extremities_only).
   enum class Placement { kFront, kBack, kReplace, kRefuse };
-  Placement PlaceCutPoint(const CutPoint& point) const;
+  Placement PlaceCutPoint(const CutPoint& point, const DetectionResult& result) const;
+  // An outlier of this frame outside cluster_ lies within the growth radius of the lone first
+  // point (frame-0 midpoint): the cut it marks still opens there.
+  bool LonePointSupported(const DetectionResult& result) const;
   // The point lies within the growth radius r_pc + 1.5 r_F of the extremity (frame 0).
   bool NearExtremity(const CutPoint& point, const CutPoint& end) const;
   // Inserts at the nearest extremity (or as placed); returns true when it went to the front.

@@ -999,6 +999,39 @@ TEST(CutDetector, PointFarFromTheExtremitiesIsNotAppended) {
   EXPECT_NEAR(xs[0], 130.0, 3.0);
 }
 
+// A lone first point (band-precut-side seed 10: a slit's first point) whose cut still opens
+// near it, too weakly for a second point (a few features move apart 60 mm along, within its
+// growth radius of 28.3 mm), is not replaced by a far cluster (there: a stretched band's stem
+// corner), which the old rule did at once (checked). Once nothing opens near it, the far
+// cluster replaces it as before.
+TEST(CutDetector, LonePointStillOpeningIsNotReplaced) {
+  const FeatureGrid g = MakeGrid();
+  const RowMatX3d model = StretchedModel(g);
+  for (unsigned seed : {6u, 7u, 8u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    CutDetector detector{CutDetectorOptions()};
+    detector.Initialize(g.p0, g.ids);
+    std::mt19937 rng(seed);
+    DetectionResult r;
+    detector.Update(MakeFrame(g, OpenRegion(g, 40.0, 2.5, 2.5, &rng), model), &r);
+    ASSERT_EQ(detector.polyline().size(), 1u);
+    for (int frame = 0; frame < 5; ++frame) {
+      RowMatX3d target = OpenRegion(g, 130.0, 2.5, 2.5, &rng);
+      for (int i = 0; i < g.p0.rows(); ++i) {  // the four features nearest to (60, 0) part
+        const double x = g.p0(i, 0), y = g.p0(i, 1);
+        if (std::abs(x - 60.0) < 3.0 && std::abs(y) < 5.0) target(i, 1) += y > 0 ? 2.5 : -2.5;
+      }
+      detector.Update(MakeFrame(g, target, model), &r);
+      ASSERT_EQ(detector.polyline().size(), 1u) << "frame " << frame;
+      EXPECT_NEAR(detector.polyline()[0].initial_position_mm.x(), 40.0, 3.0) << "frame " << frame;
+    }
+    for (int frame = 0; frame < 3; ++frame)
+      detector.Update(MakeFrame(g, OpenRegion(g, 130.0, 2.5, 2.5, &rng), model), &r);
+    ASSERT_EQ(detector.polyline().size(), 1u);
+    EXPECT_NEAR(detector.polyline()[0].initial_position_mm.x(), 130.0, 3.0);
+  }
+}
+
 TEST(CutDetector, PolylineDoesNotFoldBack) {
   // The third opening lies between the two extremities: joining either end would reverse the
   // polyline's direction there.
