@@ -154,35 +154,41 @@ int DropCrackBranches(const SurfaceMesh& crack, std::vector<bool>* kept) {
 // - a face cut loose along all of the curve, as a structure triangle lying in the crack: its
 //   open edges run, with other vertices at the same positions, opposite to open edges of the
 //   faces around the hole it left; their vertices are merged into those of the hole's faces.
-void MendCoincidences(const std::vector<Eigen::Vector3d>& positions,
-                      std::vector<std::array<int, 3>>* faces) {
-  const auto sorted = [](std::array<int, 3> f) {
-    std::sort(f.begin(), f.end());
-    return f;
-  };
-  // Double layers: faces with the same vertex set and opposite orientations.
+// Removes each face whose exact reverse (same three vertices, other orientation) is a face
+// too, and that reverse; returns whether it removed any.
+bool RemoveDoubleLayers(std::vector<std::array<int, 3>>* faces) {
   std::map<std::array<int, 3>, std::vector<size_t>> by_vertices;
-  for (size_t f = 0; f < faces->size(); ++f) by_vertices[sorted((*faces)[f])].push_back(f);
+  for (size_t f = 0; f < faces->size(); ++f) {
+    std::array<int, 3> key = (*faces)[f];
+    std::sort(key.begin(), key.end());
+    by_vertices[key].push_back(f);
+  }
   std::vector<bool> drop(faces->size(), false);
-  const auto rotations_of = [](const std::array<int, 3>& f) {
-    return std::array<std::array<int, 3>, 3>{
-        {{f[0], f[1], f[2]}, {f[1], f[2], f[0]}, {f[2], f[0], f[1]}}};
-  };
+  bool any = false;
   for (const auto& [key, list] : by_vertices) {
     if (list.size() != 2) continue;
     const std::array<int, 3>& f = (*faces)[list[0]];
-    const std::array<int, 3> reversed = {(*faces)[list[1]][0], (*faces)[list[1]][2],
-                                         (*faces)[list[1]][1]};
-    const auto r = rotations_of(f);
-    if (std::find(r.begin(), r.end(), reversed) == r.end()) continue;  // same orientation
+    const std::array<int, 3>& g = (*faces)[list[1]];
+    const std::array<int, 3> reversed = {g[0], g[2], g[1]};
+    const bool opposite = reversed == f || reversed == std::array<int, 3>{f[1], f[2], f[0]} ||
+                          reversed == std::array<int, 3>{f[2], f[0], f[1]};
+    if (!opposite) continue;
     drop[list[0]] = drop[list[1]] = true;
+    any = true;
   }
+  if (!any) return false;
   std::vector<std::array<int, 3>> kept;
   for (size_t f = 0; f < faces->size(); ++f)
     if (!drop[f]) kept.push_back((*faces)[f]);
   faces->swap(kept);
+  return true;
+}
 
-  // Open half-edges (no face runs the other way along them) and the vertices they may merge.
+// Merges the vertices of each open half-edge (no face runs the other way along it) into those of
+// the one open half-edge that runs the other way between the same two positions, when each is
+// the only one there; the vertex of more faces stays. Returns whether it merged any.
+bool StitchCoincidentOpenEdges(const std::vector<Eigen::Vector3d>& positions,
+                               std::vector<std::array<int, 3>>* faces) {
   std::map<std::pair<int, int>, int> directed;
   std::vector<int> uses(positions.size(), 0);
   for (const auto& f : *faces)
@@ -211,7 +217,6 @@ void MendCoincidences(const std::vector<Eigen::Vector3d>& positions,
     for (const auto& [a, b] : {std::make_pair(u, u2), std::make_pair(w, w2)}) {
       const int ra = root(a), rb = root(b);
       if (ra == rb) continue;
-      // The vertex of more faces stays (the hole's side, whose embedding offset it keeps).
       if (uses[ra] >= uses[rb]) {
         merged[rb] = ra;
       } else {
@@ -220,9 +225,27 @@ void MendCoincidences(const std::vector<Eigen::Vector3d>& positions,
       any = true;
     }
   }
-  if (!any) return;
+  if (!any) return false;
   for (auto& f : *faces)
     for (int& v : f) v = root(v);
+  return true;
+}
+
+// Two flaws of a split closed structure where the crack touches the structure's surface, mended
+// in place (positions are not changed, so neither is the enclosed volume), each as often as the
+// other's mending uncovers more (a few rounds):
+// - a face and its exact reverse (same three vertices), as where both caps run over a part of
+//   the crack whose vertices serve both sides: a double layer enclosing nothing; both go;
+// - a face cut loose along all of the curve, as a structure triangle lying in the crack: its
+//   open edges run, with other vertices at the same positions, opposite to open edges of the
+//   faces around the hole it left; their vertices are merged into those of the hole's faces.
+void MendCoincidences(const std::vector<Eigen::Vector3d>& positions,
+                      std::vector<std::array<int, 3>>* faces) {
+  for (int round = 0; round < 4; ++round) {
+    const bool removed = RemoveDoubleLayers(faces);
+    const bool stitched = StitchCoincidentOpenEdges(positions, faces);
+    if (!removed && !stitched) return;
+  }
 }
 
 // Area-weighted normal of the faces around v (length 2 x area).
@@ -570,6 +593,14 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
       }
       cap.push_back(face);
     }
+    // A point of the crack can be several vertices of it (orient_polygon_soup duplicates the
+    // points where sheets touch); shared by one of them, it is shared by all: both sides use
+    // one output vertex there, so the chords through it are split below on every sheet.
+    std::set<int> shared_keys;
+    for (const CapVertex& v : vertices)
+      if (v.shared && v.key >= 0) shared_keys.insert(v.key);
+    for (CapVertex& v : vertices)
+      if (v.key >= 0 && shared_keys.count(v.key)) v.shared = true;
     // A chord (an edge inside the cap between two shared vertices) would become one edge of
     // both caps, with four faces: it is split at its midpoint, which has a copy per side.
     std::map<std::pair<int, int>, int> uses;
