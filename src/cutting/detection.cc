@@ -789,14 +789,12 @@ void CutDetector::RemovePairsNear(const Eigen::Vector3d& centre_mm, int* removed
 }
 
 bool CutDetector::LonePointSupported(const DetectionResult& result) const {
-  const double growth_mm = options_.cut_point_radius_mm + 1.5 * options_.neighbour_radius_mm;
-  const Eigen::Vector3d& lone = polyline_[0].initial_position_mm;
   for (int k : result.outliers) {
     if (std::find(cluster_.begin(), cluster_.end(), k) != cluster_.end()) continue;
     const FeaturePair& p = result.pairs[k];
     const Eigen::Vector3d mid =
         0.5 * (initial_mm_.row(p.first) + initial_mm_.row(p.second)).transpose();
-    if ((mid - lone).squaredNorm() <= growth_mm * growth_mm) return true;
+    if (WithinGrowthRadius(mid, polyline_[0])) return true;
   }
   return false;
 }
@@ -829,11 +827,14 @@ CutDetector::Placement CutDetector::PlaceCutPoint(const CutPoint& point,
   return Placement::kRefuse;
 }
 
-bool CutDetector::NearExtremity(const CutPoint& point, const CutPoint& end) const {
+bool CutDetector::WithinGrowthRadius(const Eigen::Vector3d& p0, const CutPoint& end) const {
   // Frame-0 coordinates: r_F and the pair lengths of the growth radius are frame-0 lengths.
   const double growth_mm = options_.cut_point_radius_mm + 1.5 * options_.neighbour_radius_mm;
-  return (point.initial_position_mm - end.initial_position_mm).squaredNorm() <=
-         growth_mm * growth_mm;
+  return (p0 - end.initial_position_mm).squaredNorm() <= growth_mm * growth_mm;
+}
+
+bool CutDetector::NearExtremity(const CutPoint& point, const CutPoint& end) const {
+  return WithinGrowthRadius(point.initial_position_mm, end);
 }
 
 bool CutDetector::InsertCutPoint(const CutPoint& point, Placement placement) {

@@ -288,6 +288,8 @@ class CutDetector {
   bool LonePointSupported(const DetectionResult& result) const;
   // The point lies within the growth radius r_pc + 1.5 r_F of the extremity (frame 0).
   bool NearExtremity(const CutPoint& point, const CutPoint& end) const;
+  // The frame-0 position p0 lies within that radius of `end`.
+  bool WithinGrowthRadius(const Eigen::Vector3d& p0, const CutPoint& end) const;
   // Inserts at the nearest extremity (or as placed); returns true when it went to the front.
   bool InsertCutPoint(const CutPoint& point, Placement placement);
   // Removes cluster_'s pairs from candidates_.

@@ -98,13 +98,13 @@ Mesh CrackToMesh(const SurfaceMesh& crack, const std::vector<bool>& kept) {
 }
 
 // Where three or more of the crack's `kept` faces share an edge, keeps the two that continue
-// each other most nearly straight across it and clears the others from `kept`; returns how many
-// it cleared. Such an edge is where the cutter unsewed a face across a fold of S (all three of
+// each other most nearly straight across it and clears the others from `kept`; returns whether
+// it cleared any. Such an edge is where the cutter unsewed a face across a fold of S (all three of
 // its vertices within the on-surface tolerance, the face itself tilted across the slab): an
 // element then hangs between two sheets of the crack, which has three sides there, while a
 // split structure has two. Not split along a cleared face, the structure stays whole across it,
 // and the element between the sheets carries it with the side that element is attached to.
-int DropCrackBranches(const SurfaceMesh& crack, std::vector<bool>* kept) {
+bool DropCrackBranches(const SurfaceMesh& crack, std::vector<bool>* kept) {
   std::map<std::pair<int, int>, std::vector<int>> edge_faces;
   for (int f = 0; f < crack.num_faces(); ++f) {
     if (!(*kept)[f]) continue;
@@ -139,21 +139,10 @@ int DropCrackBranches(const SurfaceMesh& crack, std::vector<bool>* kept) {
     for (size_t i = 0; i < around.size(); ++i)
       if (i != keep_i && i != keep_j) branches.push_back(around[i]);
   }
-  int cleared = 0;
-  for (int f : branches) {
-    cleared += (*kept)[f] ? 1 : 0;
-    (*kept)[f] = false;
-  }
-  return cleared;
+  for (int f : branches) (*kept)[f] = false;
+  return !branches.empty();
 }
 
-// Two flaws of a split closed structure where the crack touches the structure's surface, mended
-// in place (positions are not changed, so neither is the enclosed volume):
-// - a face and its exact reverse (same three vertices), as where both caps run over a part of
-//   the crack whose vertices serve both sides: a double layer enclosing nothing; both go;
-// - a face cut loose along all of the curve, as a structure triangle lying in the crack: its
-//   open edges run, with other vertices at the same positions, opposite to open edges of the
-//   faces around the hole it left; their vertices are merged into those of the hole's faces.
 // Removes each face whose exact reverse (same three vertices, other orientation) is a face
 // too, and that reverse; returns whether it removed any.
 bool RemoveDoubleLayers(std::vector<std::array<int, 3>>* faces) {
@@ -368,7 +357,7 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
                      [&](const Box& b) { return !CGAL::do_overlap(b.bbox(), structure_box); }),
       crack_boxes.end());
   for (const Box& b : crack_boxes) crack_kept[b.info()] = true;
-  if (DropCrackBranches(crack, &crack_kept) > 0)
+  if (DropCrackBranches(crack, &crack_kept))
     crack_boxes.erase(std::remove_if(crack_boxes.begin(), crack_boxes.end(),
                                      [&](const Box& b) { return !crack_kept[b.info()]; }),
                       crack_boxes.end());
