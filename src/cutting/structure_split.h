@@ -39,7 +39,10 @@ struct SplitStructure {
 // crack faces share an edge (a branch: more than two sides), the structure is split along the
 // two that continue each other most nearly straight and stays whole across the others. Where
 // the crack touches the structure's surface, a double layer (a face and its exact reverse) is
-// removed and a face cut loose along all its edges is joined back to the faces around its hole.
+// removed and a face cut loose along all its edges is joined back to the faces around its hole;
+// a split that is still not a closed manifold is made again with the crack moved by 1e-9 x (1 +
+// the structure's diagonal) along fixed generic directions (the cap's vertices are then that far
+// off the crack), which turns an exact contact into a crossing or none.
 SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& crack,
                                double offset_mm);
 

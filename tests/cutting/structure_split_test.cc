@@ -238,22 +238,24 @@ TEST(StructureSplit, BranchOffTheCrackIsNotSplitAlong) {
   EXPECT_EQ(branches, 3);
 }
 
-// Three cracks of the synthetic kidney (arreg synth --scenario kidney-cut, seeds 15, 17 and 18,
-// the rest mesh's cracks at frames 101, 70 and 97, tests/data/structure_split) that touch its
-// internal structure's surface: on the first both caps ran over the same five edges (a part of
-// the crack whose vertices serve both sides, a double layer), on the second a structure
+// Four cracks of the synthetic kidney (arreg synth --scenario kidney-cut, seeds 15, 17, 18 and
+// 21, the rest mesh's cracks at frames 101, 70, 97 and 91, tests/data/structure_split) that
+// touch its internal structure's surface: on the first both caps ran over the same five edges (a
+// part of the crack whose vertices serve both sides, a double layer), on the second a structure
 // triangle lying in the crack kept the copies of its vertices that its neighbours did not take
 // (6 open edges), on the third sheets of the crack touch at points that serve both sides, and
-// the caps of both sides met on 8 edges through them. All were refused (the pipeline then
-// deleted the crossing triangles); now each is one closed oriented manifold (a pocket: the
-// cracks stop inside) with the structure's volume.
+// the caps of both sides met on 8 edges through them, on the fourth a piece of the curve one
+// edge long, not split by the corefinement, ends at a vertex it duplicated for another piece,
+// and both caps met on that edge (the split is made again with the crack moved by 6e-8 mm).
+// All were refused (the pipeline then deleted the crossing triangles); now each is one closed
+// oriented manifold (a pocket: the cracks stop inside) with the structure's volume.
 TEST(StructureSplit, KidneyCracksTouchingTheStructureAreMended) {
   const std::string dir = std::string(ARREG_SOURCE_DIR) + "/tests/data/structure_split/";
   const SurfaceMesh structure = ReadSurfaceMesh(dir + "kidney_structure.obj");
   ASSERT_TRUE(AnalyzeSurface(structure).closed_oriented_manifold());
   const double volume = EnclosedVolume(structure);
   for (const char* name : {"kidney_seed15_frame101_crack.obj", "kidney_seed17_frame70_crack.obj",
-                           "kidney_seed18_frame97_crack.obj"}) {
+                           "kidney_seed18_frame97_crack.obj", "kidney_seed21_frame91_crack.obj"}) {
     SCOPED_TRACE(name);
     const SurfaceMesh crack = ReadSurfaceMesh(dir + name);
     const SplitStructure split = SplitAlongCrack(structure, crack, 1e-3);
