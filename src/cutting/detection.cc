@@ -2,8 +2,10 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <string>
+#include <utility>
 
 #include "core/error.h"
 
@@ -335,15 +337,24 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   // Bridges continue a cut. Before the first point they are no candidates, except in a second
   // pass of a frame where the pairs of C_F started nothing: there a point needs n pairs in its
   // cluster, bridges included (see bridge_radius_factor).
+  // The bridges' pass meets the clusters the first pass rejected again: each rejection count
+  // of the frame is the larger of the two passes', so that a cluster is counted once.
   const bool starting = polyline_.empty();
+  int* const rejections[] = {&result->lone_features, &result->one_sided_clusters,
+                             &result->refused_points};
+  std::array<int, 3> first_pass{};
   for (int pass = 0; pass < (starting ? 2 : 1) && result->new_cut_points.empty(); ++pass) {
     const bool bridge_pass = pass == 1;
+    if (bridge_pass)
+      for (int c = 0; c < 3; ++c) first_pass[c] = std::exchange(*rejections[c], 0);
     candidates_ = result->outliers;
     if (starting && !bridge_pass)
       candidates_.erase(std::remove_if(candidates_.begin(), candidates_.end(),
                                        [&](int k) { return result->pairs[k].bridge; }),
                         candidates_.end());
     InsertCutPoints(bridge_pass, result);
+    if (bridge_pass)
+      for (int c = 0; c < 3; ++c) *rejections[c] = std::max(*rejections[c], first_pass[c]);
   }
 
   // The growth probe, when C^t inserted nothing: the back extremity first, then the front.

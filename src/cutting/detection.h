@@ -239,8 +239,10 @@ struct DetectionResult {
   int pairs_removed_by_cut = 0;  // pairs crossing the r_pc sphere of the new cut points
   // Clusters rejected this frame as one feature's star (reject_lone_features).
   int lone_features = 0;
-  int one_sided_clusters = 0;      // clusters rejected this frame by min_opening_balance
-  int refused_points = 0;          // cut points refused this frame as no growth of the polyline
+  int one_sided_clusters = 0;  // clusters rejected this frame by min_opening_balance
+  int refused_points = 0;      // cut points refused this frame as no growth of the polyline
+  // (or with too few pairs to start one). Each of these three counts a cluster once: a frame
+  // without a polyline makes a second pass, with bridges, and reports the larger count.
   int pairs_removed_by_death = 0;  // pairs with a feature that died this frame
   int pairs_bridged = 0;   // pairs added this frame in place of dead ones (bridge_radius_factor)
   int probe_pairs = 0;     // alive probe pairs evaluated this frame (probe_length_factor)

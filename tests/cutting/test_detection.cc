@@ -951,7 +951,9 @@ TEST(CutDetector, OneSidedOpeningGivesNoCutPoint) {
     const OpeningRun run = RunOpenings(same_place, 5.0, 0.0, o, 4);
     if (balance > 0.0) {
       EXPECT_EQ(run.cut_points, 0);
-      EXPECT_GT(run.one_sided, 0);
+      // One cluster, rejected once a frame: the bridges' pass of a frame without a polyline
+      // meets it again and counted it a second time (20).
+      EXPECT_EQ(run.one_sided, 10);
     } else {
       EXPECT_GE(run.cut_points, 1);
       EXPECT_EQ(run.one_sided, 0);
