@@ -104,7 +104,8 @@ int RunRun(int argc, char** argv) {
                    "surface target update (default intercept, thesis eq. 7.1)");
   parser.AddFlag("quiet", &quiet, "no progress bar");
   parser.AddFlag("debug", &record_debug,
-                 "record per-frame debug state in DIR/debug/ for `arreg debug` (docs/debug.md)");
+                 "record per-frame debug state in DIR/debug/ for `arreg debug`, and the inputs of "
+                 "any refused internal-structure split (docs/debug.md)");
   parser.SetEpilog(
       "Options given here override the scene's module sections (docs/pipeline.md).\n"
       "Writes in DIR: overlay.mp4, frames.jsonl, run.json, mesh/NNNNNN.vtk, surface/NNNNNN.obj,\n"
@@ -115,6 +116,7 @@ int RunRun(int argc, char** argv) {
   const Scene scene = ReadScene(scene_path);
   pipeline::PipelineOptions options = pipeline::ReadPipelineOptions(scene);
   if (no_topology) options.cutting.enabled = false;
+  if (record_debug) options.cutting.refused_split_dir = out_dir + "/debug";
   if (frames != -1) options.max_frames = frames;
   if (png) options.output.png_frames = true;
   if (no_video || no_render) options.output.video = false;

@@ -7,9 +7,12 @@
 #include <cmath>
 
 #include "ar/synth/shapes.h"
+#include "core/error.h"
 #include "core/mesh_generators.h"
+#include "core/mesh_io.h"
 #include "core/mesh_ops.h"
 #include "cutting/mesh_checks.h"
+#include "cutting/structure_split.h"
 #include "test_util.h"
 
 namespace arreg::pipeline {
@@ -281,6 +284,54 @@ TEST(CutHandler, InternalStructureIsSplitAndCappedAlongTheCrack) {
       EXPECT_FALSE(AnalyzeSurface(opened).closed());
     }
   }
+}
+
+// A structure whose split is refused (its faces alternate in orientation, which no halfedge mesh
+// holds) loses its triangles crossing S, and with refused_split_dir set the split's inputs are
+// written there: the structure as loaded and the model's crack, on which SplitAlongCrack refuses
+// again, so the refusal can be reproduced without the video.
+TEST(CutHandler, RefusedSplitWritesItsInputs) {
+  const TetMesh block =
+      MakeBoxTetMesh(Eigen::Vector3d(40, 40, 20), Eigen::Vector3i(8, 8, 4), BoxTetSplit::kSix);
+  SurfaceMesh ball = MakeUvSphere(Eigen::Vector3d(20, 20.6, 10), 6, 12, 24);
+  for (int f = 1; f < ball.num_faces(); f += 2) std::swap(ball.faces(f, 1), ball.faces(f, 2));
+  const std::vector<SurfaceMesh> original = {ball};
+  Model model(block);
+  model.internal = original;
+  model.internal_rest = {ball.vertices};
+  model.internal_embedding = {mechanics::EmbeddedPoints::Embed(
+      ball.vertices, model.state.rest_positions(), model.state.tetrahedra())};
+  CutTargets targets = model.Targets();
+  targets.internal_original = &original;
+  CuttingStageOptions options;
+  options.refused_split_dir = testing::ScratchDir("refused_split");
+  CutHandler handler(options, model.state);
+  const std::vector<Eigen::Vector3d> line = {{-4, 20.3, 20}, {20, 20.3, 20}};
+  const CutEvent ev = handler.Apply(7, line, line, Eigen::Vector3d(20, 20, 200), targets);
+  ASSERT_EQ(ev.status, "cut") << ev.message;
+  EXPECT_GT(ev.internal_triangles_removed, 0);
+  EXPECT_EQ(ev.internal_cap_faces, 0);
+  const std::string path = options.refused_split_dir + "/000007_split_0_";
+  const SurfaceMesh structure = ReadSurfaceMesh(path + "structure.obj");
+  const SurfaceMesh crack = ReadSurfaceMesh(path + "crack.obj");
+  EXPECT_EQ(structure.faces, ball.faces);
+  EXPECT_EQ(structure.vertices, ball.vertices);  // written with round-trip precision
+  const SurfaceMesh model_crack = cutting::CrackSurface(model.state.RestMesh());
+  EXPECT_GT(crack.num_faces(), 0);
+  EXPECT_EQ(crack.faces, model_crack.faces);
+  EXPECT_EQ(crack.vertices, model_crack.vertices);
+  EXPECT_THROW(cutting::SplitAlongCrack(structure, crack, 1e-3), arreg::Error);
+  // Without the folder the event is the same.
+  Model again(block);
+  again.internal = original;
+  again.internal_rest = {ball.vertices};
+  again.internal_embedding = {mechanics::EmbeddedPoints::Embed(
+      ball.vertices, again.state.rest_positions(), again.state.tetrahedra())};
+  CutTargets again_targets = again.Targets();
+  again_targets.internal_original = &original;
+  CutHandler plain(CuttingStageOptions{}, again.state);
+  const CutEvent ev2 = plain.Apply(7, line, line, Eigen::Vector3d(20, 20, 200), again_targets);
+  EXPECT_EQ(ev2.internal_triangles_removed, ev.internal_triangles_removed);
 }
 
 // A crack grown across a block while the model shears differently between events, as the lips

@@ -1,10 +1,13 @@
 #include "ar/pipeline/cut_handler.h"
 
+#include <cstdio>
 #include <limits>
+#include <string>
 
 #include "ar/lift/lifting.h"
 #include "core/error.h"
 #include "core/log.h"
+#include "core/mesh_io.h"
 #include "core/mesh_ops.h"
 #include "cutting/cut_extrusion.h"
 #include "cutting/cut_surface.h"
@@ -338,9 +341,22 @@ bool CutHandler::SplitInternal(const SurfaceMesh& original, const SurfaceMesh& c
     ev->internal_cap_faces += split.cap_faces;
     return true;
   } catch (const Error& e) {
+    std::string inputs;
+    if (!options_.refused_split_dir.empty()) {
+      char prefix[32];
+      std::snprintf(prefix, sizeof(prefix), "/%06d_split_%zu_", ev->frame, k);
+      const std::string path = options_.refused_split_dir + prefix;
+      try {
+        WriteSurfaceMesh(path + "structure.obj", original);
+        WriteSurfaceMesh(path + "crack.obj", crack);
+        inputs = "; its inputs: " + path + "structure.obj, " + path + "crack.obj";
+      } catch (const Error& w) {
+        inputs = std::string("; its inputs were not written: ") + w.what();
+      }
+    }
     ARREG_LOG_WARNING(
         "run: frame ", ev->frame, ": internal structure ", k,
-        " not split along the crack (its triangles crossing S are deleted): ", e.what());
+        " not split along the crack (its triangles crossing S are deleted): ", e.what(), inputs);
     return false;
   }
 }

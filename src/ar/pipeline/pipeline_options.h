@@ -108,6 +108,13 @@ struct CuttingStageOptions {
   // deletes the triangles crossing S (thesis eq. 7.12), which leaves a hole where the crack
   // opens.
   bool internal_caps = true;
+  // Where an internal structure's split is refused (the event then deletes its triangles
+  // crossing S), the split's inputs are written to this folder, when set, so that it can be
+  // reproduced with cutting::SplitAlongCrack: NNNNNN_split_K_structure.obj (the structure as
+  // loaded) and NNNNNN_split_K_crack.obj (the model's crack), both in rest coordinates [mm], for
+  // frame NNNNNN and structure K. Not a scene key: `arreg run --debug` sets it to DIR/debug.
+  // Default "" (nothing written).
+  std::string refused_split_dir;
   void Check() const;
 };
 
