@@ -71,6 +71,22 @@ struct Model {
     return {&state,    &springs,       &features,          &features_rest, &feature_embedding,
             &internal, &internal_rest, &internal_embedding};
   }
+
+  // The targets with the internal structures replaced by `*original` (at rest as loaded), which
+  // the events split along the crack.
+  CutTargets TargetsSplitting(const std::vector<SurfaceMesh>* original) {
+    internal = *original;
+    internal_rest.clear();
+    internal_embedding.clear();
+    for (const SurfaceMesh& structure : *original) {
+      internal_rest.push_back(structure.vertices);
+      internal_embedding.push_back(mechanics::EmbeddedPoints::Embed(
+          structure.vertices, state.rest_positions(), state.tetrahedra()));
+    }
+    CutTargets targets = Targets();
+    targets.internal_original = original;
+    return targets;
+  }
 };
 
 // One event across the whole 40 x 40 x 20 mm block seen from above, the block moved since
@@ -222,12 +238,7 @@ TEST(CutHandler, InternalStructureIsSplitAndCappedAlongTheCrack) {
   for (bool caps : {true, false}) {
     SCOPED_TRACE(caps ? "caps" : "deletion");
     Model model(block);
-    model.internal = original;
-    model.internal_rest = {ball.vertices};
-    model.internal_embedding = {mechanics::EmbeddedPoints::Embed(
-        ball.vertices, model.state.rest_positions(), model.state.tetrahedra())};
-    CutTargets targets = model.Targets();
-    targets.internal_original = &original;
+    CutTargets targets = model.TargetsSplitting(&original);
     CuttingStageOptions options;
     options.keep_connected = false;
     options.internal_caps = caps;
@@ -297,12 +308,7 @@ TEST(CutHandler, RefusedSplitWritesItsInputs) {
   for (int f = 1; f < ball.num_faces(); f += 2) std::swap(ball.faces(f, 1), ball.faces(f, 2));
   const std::vector<SurfaceMesh> original = {ball};
   Model model(block);
-  model.internal = original;
-  model.internal_rest = {ball.vertices};
-  model.internal_embedding = {mechanics::EmbeddedPoints::Embed(
-      ball.vertices, model.state.rest_positions(), model.state.tetrahedra())};
-  CutTargets targets = model.Targets();
-  targets.internal_original = &original;
+  CutTargets targets = model.TargetsSplitting(&original);
   CuttingStageOptions options;
   options.refused_split_dir = testing::ScratchDir("refused_split");
   CutHandler handler(options, model.state);
@@ -323,12 +329,7 @@ TEST(CutHandler, RefusedSplitWritesItsInputs) {
   EXPECT_THROW(cutting::SplitAlongCrack(structure, crack, 1e-3), arreg::Error);
   // Without the folder the event is the same.
   Model again(block);
-  again.internal = original;
-  again.internal_rest = {ball.vertices};
-  again.internal_embedding = {mechanics::EmbeddedPoints::Embed(
-      ball.vertices, again.state.rest_positions(), again.state.tetrahedra())};
-  CutTargets again_targets = again.Targets();
-  again_targets.internal_original = &original;
+  CutTargets again_targets = again.TargetsSplitting(&original);
   CutHandler plain(CuttingStageOptions{}, again.state);
   const CutEvent ev2 = plain.Apply(7, line, line, Eigen::Vector3d(20, 20, 200), again_targets);
   EXPECT_EQ(ev2.internal_triangles_removed, ev.internal_triangles_removed);
