@@ -318,10 +318,9 @@ SurfaceMesh CrackSurface(const TetMesh& rest) {
 
 namespace {
 
-// One try of SplitAlongCrack (below); for a closed structure, `*manifold` tells whether the
-// result is a closed oriented manifold, and the result is only meant to be used when it is.
-SplitStructure SplitOnce(const SurfaceMesh& structure, const SurfaceMesh& crack, double offset_mm,
-                         SurfaceTopology* result) {
+// One try of SplitAlongCrack (below), without its final check: a capped result is only meant to
+// be used when it is a closed oriented manifold.
+SplitStructure SplitOnce(const SurfaceMesh& structure, const SurfaceMesh& crack, double offset_mm) {
   SplitStructure out;
   out.surface.vertices = structure.vertices;
   out.surface.faces = structure.faces;
@@ -706,7 +705,6 @@ SplitStructure SplitOnce(const SurfaceMesh& structure, const SurfaceMesh& crack,
   out.surface.faces.resize(static_cast<Eigen::Index>(faces.size()), 3);
   for (size_t f = 0; f < faces.size(); ++f)
     out.surface.faces.row(static_cast<Eigen::Index>(f)) << faces[f][0], faces[f][1], faces[f][2];
-  if (out.capped) *result = AnalyzeSurface(out.surface);
   return out;
 }
 
@@ -716,9 +714,10 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
                                double offset_mm) {
   ARREG_CHECK_INPUT(offset_mm > 0, "", "SplitAlongCrack", "offset_mm must be positive, got ",
                     offset_mm);
-  SurfaceTopology result;
-  SplitStructure out = SplitOnce(structure, crack, offset_mm, &result);
-  if (!out.capped || result.closed_oriented_manifold()) return out;
+  SplitStructure out = SplitOnce(structure, crack, offset_mm);
+  if (!out.capped) return out;
+  const SurfaceTopology result = AnalyzeSurface(out.surface);
+  if (result.closed_oriented_manifold()) return out;
   // The exact predicates see the crack's contacts with the structure's surface as they are: a
   // crack vertex on a structure face or edge, a crack face in a structure face's plane. The
   // mendings above repair the usual results of such contacts; where a contact still leaves the
@@ -734,9 +733,9 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
         Eigen::RowVector3d(-std::sqrt(3.0), 1, -std::sqrt(2.0)).normalized()}) {
     SurfaceMesh moved = crack;
     moved.vertices.rowwise() += step * direction;
-    SurfaceTopology moved_result;
-    SplitStructure retried = SplitOnce(structure, moved, offset_mm, &moved_result);
-    if (!retried.capped || moved_result.closed_oriented_manifold()) return retried;
+    SplitStructure retried = SplitOnce(structure, moved, offset_mm);
+    if (!retried.capped || AnalyzeSurface(retried.surface).closed_oriented_manifold())
+      return retried;
   }
   // Two caps describe two sides; where cracks branch inside the structure (three sheets on one
   // edge) the sides are more than two, which this construction cannot represent.
