@@ -99,6 +99,11 @@ void FeatureTrackerOptions::Check() const {
   specular.Check();
   ARREG_CHECK_INPUT(max_features >= 1, "", "FeatureTrackerOptions.max_features",
                     "must be >= 1, got ", max_features);
+  ARREG_CHECK_INPUT(min_features >= 0, "", "FeatureTrackerOptions.min_features",
+                    "must be >= 0, got ", min_features);
+  ARREG_CHECK_INPUT(std::isfinite(min_hessian_threshold) && min_hessian_threshold >= 0, "",
+                    "FeatureTrackerOptions.min_hessian_threshold", "must be >= 0, got ",
+                    min_hessian_threshold);
   ARREG_CHECK_INPUT(min_distance_px >= 0, "", "FeatureTrackerOptions.min_distance_px",
                     "must be >= 0, got ", min_distance_px);
   ARREG_CHECK_INPUT(border_px >= 0, "", "FeatureTrackerOptions.border_px", "must be >= 0, got ",
@@ -310,7 +315,12 @@ SurfOptions DetectorOptions(SurfOptions surf) {
 FeatureTracker::FeatureTracker(const FeatureTrackerOptions& options)
     : options_(options),
       surf_((options.Check(), DetectorOptions(options.surf))),
-      round_surf_(DetectorOptions(options.surf)) {}
+      round_surf_(DetectorOptions(options.surf)),
+      weak_surf_([&] {
+        SurfOptions weak = DetectorOptions(options.surf);
+        weak.hessian_threshold = options.min_hessian_threshold;
+        return weak;
+      }()) {}
 
 int FeatureTracker::num_active() const {
   return static_cast<int>(std::count_if(current_.begin(), current_.end(), [](const auto& f) {
@@ -404,15 +414,27 @@ int FeatureTracker::Detect(const cv::Mat& roi_mask) {
 
   const float border = static_cast<float>(options_.border_px);
   std::vector<SurfKeypoint> accepted;
-  for (const SurfKeypoint& kp : candidates) {
-    if (static_cast<int>(accepted.size()) >= room) break;
-    const cv::Point2f p = kp.position_px;
-    if (p.x < border || p.y < border || p.x > gray_.cols - 1 - border ||
-        p.y > gray_.rows - 1 - border)
-      continue;
-    if (IsSpecular(p) || crowded(p)) continue;
-    occupy(p);
-    accepted.push_back(kp);
+  auto accept = [&](const std::vector<SurfKeypoint>& points, int limit) {
+    for (const SurfKeypoint& kp : points) {
+      if (static_cast<int>(accepted.size()) >= limit) break;
+      const cv::Point2f p = kp.position_px;
+      if (p.x < border || p.y < border || p.x > gray_.cols - 1 - border ||
+          p.y > gray_.rows - 1 - border)
+        continue;
+      if (IsSpecular(p) || crowded(p)) continue;
+      occupy(p);
+      accepted.push_back(kp);
+    }
+  };
+  accept(candidates, room);
+  // Too few: weaker points, strongest first, up to min_features. The points already taken are
+  // found again at the lower threshold and skipped as crowded (distance 0).
+  const int wanted = std::min(room, options_.min_features - num_active());
+  if (static_cast<int>(accepted.size()) < wanted &&
+      options_.min_hessian_threshold < options_.surf.hessian_threshold) {
+    weak_surf_.SetImage(gray_);
+    weak_surf_.Detect(roi_mask, &candidates);
+    accept(candidates, wanted);
   }
   if (!options_.surf.upright) surf_.ComputeOrientations(&accepted);
   cv::Mat descriptors;

@@ -154,6 +154,15 @@ struct FeatureTrackerOptions {
   AppearanceCheckOptions appearance;
   // Most features followed at once. Default 1000.
   int max_features = 1000;
+  // Fewest features wanted after a detection (0 = off, the default). When the points above
+  // surf.hessian_threshold leave fewer features followed than this, weaker points, down to
+  // min_hessian_threshold, are added strongest first until there are this many (or none is
+  // left). The points above the threshold are always all taken, as without the option, so a
+  // well textured image gets exactly the same features; a weakly textured one is not left with
+  // too few to cover it.
+  int min_features = 0;
+  // Weakest Hessian response taken to reach min_features. Default 0.5.
+  double min_hessian_threshold = 0.5;
   // Detected features closer than this to a stronger one are skipped, pixels. Default 4.
   double min_distance_px = 4.0;
   // Features within this distance of the image edge are lost (kLostBorder), pixels. Default 4.
@@ -284,6 +293,8 @@ class FeatureTracker {
   // lost, gives the descriptor a refresh of every tracked feature at every
   // round would have given.
   SurfDetector round_surf_;
+  // Detects at min_hessian_threshold when the points above the threshold are too few.
+  SurfDetector weak_surf_;
   int round_frame_ = -1;
   int frame_ = -1;
   cv::Mat gray_, bgr_;  // current frame (bgr_ empty for grey input)

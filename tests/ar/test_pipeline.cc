@@ -320,6 +320,17 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_DOUBLE_EQ(o.render.organ_opacity, 0.5);
   EXPECT_TRUE(o.render.wireframe);
   EXPECT_EQ(o.tracking.max_features, 500);
+  // Session 17: weaker points fill a weakly textured organ up to 200 features.
+  EXPECT_EQ(o.tracking.min_features, 200);
+  EXPECT_DOUBLE_EQ(o.tracking.min_hessian_threshold, 0.5);
+  scene.tracking = {{"min_features", 0}, {"min_hessian_threshold", 2.0}};
+  EXPECT_EQ(ReadPipelineOptions(scene).tracking.min_features, 0);
+  EXPECT_DOUBLE_EQ(ReadPipelineOptions(scene).tracking.min_hessian_threshold, 2.0);
+  scene.tracking = {{"min_features", -5}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  scene.tracking = {{"min_hessian_threshold", -1.0}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  scene.tracking = nlohmann::json::object();
   // The cutting section's keys of session 6 are read and checked.
   EXPECT_TRUE(o.cutting.keep_connected);
   EXPECT_DOUBLE_EQ(o.cutting.detector.bridge_radius_factor, 2.0);

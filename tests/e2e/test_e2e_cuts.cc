@@ -107,10 +107,12 @@ TEST_P(EndToEndCut, RegistrationWithAndWithoutTopology) {
 // Hausdorff means lower; band-cut-v 4 cuts, 0.971 vs 0.859; band-cut-s 6 cuts, 0.971 vs 0.903;
 // band-precut-side 1 cut, 0.955 vs 0.936; band-precut-middle 1 cut, 0.977 vs 0.969. With the
 // integrator's line search (session 13) band-cut-v has 3 cuts, 0.956 vs 0.853 (docs/cutting.md
-// "Session 13"), the others as above to 0.001. Issue 7 asks for Dice >= 0.95 (not met at 120
-// frames on kidney-cut seed 4, docs/cutting.md "Session 13") and gains of +0.15 / +0.06 (not met).
+// "Session 13"), the others as above to 0.001. Since `tracking.min_features` (session 17) the
+// kidney carries 200 features instead of 124: 2 cuts, 0.968 vs 0.940 without, so it is held to
+// issue 7's 0.95. Issue 7 asks for Dice >= 0.95 (at 120 frames not met on kidney-cut seed 23,
+// docs/cutting.md "Session 17") and gains of +0.15 / +0.06 (not met).
 INSTANTIATE_TEST_SUITE_P(Scenarios, EndToEndCut,
-                         ::testing::Values(CutCase{"kidney-cut", 72, 1, 0.92, 0.005, true},
+                         ::testing::Values(CutCase{"kidney-cut", 72, 1, 0.95, 0.005, true},
                                            CutCase{"band-cut-v", 72, 2, 0.93, 0.08, false},
                                            CutCase{"band-cut-s", 72, 1, 0.90, 0.02, false},
                                            CutCase{"band-precut-side", 72, 1, 0.92, 0.01, false},

@@ -189,6 +189,68 @@ TEST(FeatureTracker, RedetectionAddsNewIdsAwayFromTrackedFeatures) {
   EXPECT_LE(tracker.num_active(), options.max_features);
 }
 
+// The frame-0 positions of the features, by id.
+std::vector<cv::Point2f> DetectedPositions(const FeatureTracker& tracker) {
+  std::vector<cv::Point2f> positions;
+  for (int id = 0; id < tracker.store().num_features(); ++id)
+    positions.push_back(tracker.store().history(id).front().position_px);
+  return positions;
+}
+
+TEST(FeatureTracker, MinFeaturesAddsWeakerPointsOnlyWhenTooFewAreStrong) {
+  // A faint texture (std 8 grey levels) gives 65 points above the threshold.
+  const cv::Mat faint = testing::BandLimitedTexture(240, 240, 31, 110.0, 8.0);
+  FeatureTrackerOptions options;
+  FeatureTracker plain(options);
+  plain.Initialize(faint);
+  const std::vector<cv::Point2f> strong = DetectedPositions(plain);
+  ASSERT_GT(strong.size(), 5u);
+  ASSERT_LT(strong.size(), 150u);
+
+  options.min_features = 150;
+  FeatureTracker topped(options);
+  topped.Initialize(faint);
+  const std::vector<cv::Point2f> all = DetectedPositions(topped);
+  EXPECT_EQ(topped.num_active(), options.min_features);
+  // Every point above the threshold is taken first, as without the option (ids in order).
+  ASSERT_GE(all.size(), strong.size());
+  for (size_t i = 0; i < strong.size(); ++i) EXPECT_EQ(all[i], strong[i]) << "feature " << i;
+  // The added ones are weaker than the threshold and above the floor, strongest first, and
+  // keep min_distance_px from every other.
+  for (size_t i = strong.size(); i < all.size(); ++i) {
+    const float response = topped.store().keypoint(static_cast<int>(i)).response;
+    EXPECT_GE(response, options.min_hessian_threshold) << "feature " << i;
+    EXPECT_LT(response, options.surf.hessian_threshold + 1.0) << "feature " << i;
+    if (i > strong.size())
+      EXPECT_LE(response, topped.store().keypoint(static_cast<int>(i) - 1).response);
+    for (size_t j = 0; j < i; ++j)
+      EXPECT_GE(cv::norm(all[i] - all[j]), options.min_distance_px - 1e-3);
+  }
+
+  // A floor at the threshold adds nothing.
+  options.min_hessian_threshold = options.surf.hessian_threshold;
+  FeatureTracker floored(options);
+  floored.Initialize(faint);
+  EXPECT_EQ(DetectedPositions(floored), strong);
+
+  // A well textured image that has min_features above the threshold gets the same features.
+  const cv::Mat rich = Texture(240, 240, 31);
+  FeatureTracker rich_plain{FeatureTrackerOptions()};
+  rich_plain.Initialize(rich);
+  ASSERT_GT(rich_plain.num_active(), 150);
+  options = FeatureTrackerOptions();
+  options.min_features = 150;
+  FeatureTracker rich_topped(options);
+  rich_topped.Initialize(rich);
+  EXPECT_EQ(DetectedPositions(rich_topped), DetectedPositions(rich_plain));
+
+  options.min_features = -1;
+  EXPECT_THROW(FeatureTracker{options}, Error);
+  options = FeatureTrackerOptions();
+  options.min_hessian_threshold = -0.5;
+  EXPECT_THROW(FeatureTracker{options}, Error);
+}
+
 // Re-identification scene: a textured background panning 1 px per frame to
 // the left; a flat grey occluder (an instrument) covers a square in frames
 // 1..6. From frame 7 the square shows the background again (`same`) or

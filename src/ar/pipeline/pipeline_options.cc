@@ -126,6 +126,8 @@ void ReadTracking(const Scene& scene, FeatureTrackerOptions* o) {
   JsonObjectReader r(scene.tracking, scene.path, "tracking");
   r.Optional("max_features", &o->max_features);
   r.Optional("hessian_threshold", &o->surf.hessian_threshold);
+  r.Optional("min_features", &o->min_features);
+  r.Optional("min_hessian_threshold", &o->min_hessian_threshold);
   r.Optional("min_distance_px", &o->min_distance_px);
   r.Optional("border_px", &o->border_px);
   r.Optional("redetect_every_frames", &o->redetect_every_frames);
@@ -237,6 +239,7 @@ void ReadOutput(const Scene& scene, OutputStageOptions* o) {
 PipelineOptions ReadPipelineOptions(const Scene& scene) {
   PipelineOptions o;
   o.tracking.max_features = 500;
+  o.tracking.min_features = 200;
   ReadTracking(scene, &o.tracking);
   ReadLifting(scene, &o.lifting);
   ReadMechanics(scene, &o.mechanics);
@@ -257,6 +260,8 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
   json j;
   j["tracking"] = {{"max_features", o.tracking.max_features},
                    {"hessian_threshold", o.tracking.surf.hessian_threshold},
+                   {"min_features", o.tracking.min_features},
+                   {"min_hessian_threshold", o.tracking.min_hessian_threshold},
                    {"min_distance_px", o.tracking.min_distance_px},
                    {"border_px", o.tracking.border_px},
                    {"redetect_every_frames", o.tracking.redetect_every_frames},
