@@ -92,7 +92,50 @@ Mesh CrackToMesh(const SurfaceMesh& crack, const std::vector<bool>& kept) {
     }
     polygons.push_back(polygon);
   }
+  const size_t given = points.size();
   PMP::orient_polygon_soup(points, polygons);
+  if (points.size() > given) {
+    // orient_polygon_soup duplicated the crack's non-manifold vertices (where two sheets of the
+    // crack touch in a point); coincident copies make the mesh self-intersecting, which the
+    // corefinement does not allow (it crashed on such a crack). Each copy, and the vertex it
+    // copies, moves a tiny step towards the centroid of its own faces, so the sheets no longer
+    // touch.
+    std::map<std::array<double, 3>, std::vector<size_t>> copies;
+    for (size_t i = 0; i < points.size(); ++i)
+      copies[{CGAL::to_double(points[i].x()), CGAL::to_double(points[i].y()),
+              CGAL::to_double(points[i].z())}]
+          .push_back(i);
+    std::vector<Eigen::Vector3d> centroid(points.size(), Eigen::Vector3d::Zero());
+    std::vector<int> count(points.size(), 0);
+    double edge_sum = 0;
+    int edges = 0;
+    for (const auto& polygon : polygons)
+      for (int k = 0; k < 3; ++k) {
+        const Point& p = points[polygon[k]];
+        const Point& q = points[polygon[(k + 1) % 3]];
+        edge_sum += std::sqrt(CGAL::to_double(CGAL::squared_distance(p, q)));
+        ++edges;
+        for (int j = 0; j < 3; ++j) {
+          const Point& r = points[polygon[j]];
+          centroid[polygon[k]] += Eigen::Vector3d(CGAL::to_double(r.x()), CGAL::to_double(r.y()),
+                                                  CGAL::to_double(r.z())) /
+                                  3.0;
+        }
+        ++count[polygon[k]];
+      }
+    const double step = 1e-6 * (edges > 0 ? edge_sum / edges : 1.0);
+    for (const auto& [at, same] : copies) {
+      if (same.size() < 2) continue;
+      for (size_t i : same) {
+        if (count[i] == 0) continue;
+        const Eigen::Vector3d p(at[0], at[1], at[2]);
+        Eigen::Vector3d d = centroid[i] / count[i] - p;
+        if (d.norm() == 0) continue;
+        const Eigen::Vector3d moved = p + step * d.normalized();
+        points[i] = Point(moved.x(), moved.y(), moved.z());
+      }
+    }
+  }
   Mesh m;
   PMP::polygon_soup_to_polygon_mesh(points, polygons, m);
   return m;

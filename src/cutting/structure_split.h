@@ -42,7 +42,10 @@ struct SplitStructure {
 // removed and a face cut loose along all its edges is joined back to the faces around its hole;
 // a split that is still not a closed manifold is made again with the crack moved by 1e-9 x (1 +
 // the structure's diagonal) along fixed generic directions (the cap's vertices are then that far
-// off the crack), which turns an exact contact into a crossing or none.
+// off the crack), which turns an exact contact into a crossing or none. Where sheets of the crack
+// touch in a vertex (a non-manifold vertex, which the corefinement's mesh holds as coincident
+// copies, a self-intersection it does not allow), each copy is moved 1e-6 mean edge lengths
+// towards the centroid of its own faces.
 SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& crack,
                                double offset_mm);
 

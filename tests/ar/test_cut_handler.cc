@@ -89,6 +89,17 @@ struct Model {
   }
 };
 
+// The rest mesh after a cut: conforming, positive, with the rest volume v0 kept; returns its
+// pieces (elements connected through vertices).
+int CheckedPieces(const TetMesh& rest, double v0) {
+  const cutting::MeshInvariants inv = cutting::CheckMeshInvariants(rest);
+  EXPECT_TRUE(inv.ok()) << inv.ToString();
+  EXPECT_NEAR(inv.total_volume, v0, 1e-9 * v0);
+  int pieces = 0;
+  ConnectedComponents(rest, Adjacency::kVertex, &pieces);
+  return pieces;
+}
+
 // One event across the whole 40 x 40 x 20 mm block seen from above, the block moved since
 // the handler was made. The S that spans the block's depth along the rays cuts it in two;
 // with keep_connected (the default) S is cut again shallower (each try from this frame's
@@ -118,12 +129,7 @@ TEST(CutHandler, KeepConnectedCutsShallowerInsteadOfSplitting) {
     EXPECT_EQ(ev.configuration, configuration);
     ASSERT_EQ(ev.status, "cut") << ev.message;
     const TetMesh rest = model.state.RestMesh();
-    const cutting::MeshInvariants inv = cutting::CheckMeshInvariants(rest);
-    ASSERT_TRUE(inv.ok()) << inv.ToString();
-    EXPECT_NEAR(inv.total_volume, v0, 1e-9 * v0);
-    int pieces = 0;
-    ConnectedComponents(rest, Adjacency::kVertex, &pieces);
-    EXPECT_EQ(pieces, keep ? 1 : 2);
+    EXPECT_EQ(CheckedPieces(rest, v0), keep ? 1 : 2);
     if (keep) {
       EXPECT_GT(ev.depth_fraction, 0.0);
       EXPECT_LT(ev.depth_fraction, 1.0);
@@ -142,6 +148,52 @@ TEST(CutHandler, KeepConnectedCutsShallowerInsteadOfSplitting) {
     EXPECT_EQ(on_line(20), 18);
     EXPECT_EQ(on_line(0), keep ? 9 : 18);
   }
+}
+
+// A cut seen early: its first event's polyline ends 6 mm inside the block's outline on both
+// sides, so the S that spans the block's depth along it keeps the block in one piece and was
+// applied whole. With foresight (CuttingStageOptions::foresight_mm, r_F in the pipeline) the
+// depth is chosen as if the ends reached the outline, where the full depth would split the
+// block: the depth keep_connected gives a line across the whole block. The next event, whose
+// polyline turns away inside the block (at full depth it would keep the block whole too), goes
+// no deeper than the first.
+TEST(CutHandler, FirstEventDepthForeseesThePolylineReachingTheOutline) {
+  const TetMesh block =
+      MakeBoxTetMesh(Eigen::Vector3d(40, 40, 20), Eigen::Vector3i(8, 8, 4), BoxTetSplit::kSix);
+  const double v0 = cutting::CheckMeshInvariants(block).total_volume;
+  const Eigen::Vector3d eye(20, 20, 200);
+  const std::vector<Eigen::Vector3d> across = {Eigen::Vector3d(-5, 20.3, 20),
+                                               Eigen::Vector3d(45, 20.3, 20)};
+  const std::vector<Eigen::Vector3d> first = {Eigen::Vector3d(6, 20.3, 20),
+                                              Eigen::Vector3d(34, 20.3, 20)};
+  std::vector<Eigen::Vector3d> second = first;
+  second.push_back(Eigen::Vector3d(34.3, 29.7, 20));
+  double across_depth = 0;
+  {
+    Model model(block);
+    CutHandler handler(CuttingStageOptions(), model.state);
+    const CutEvent ev = handler.Apply(0, across, across, eye, model.Targets());
+    ASSERT_EQ(ev.status, "cut") << ev.message;
+    across_depth = ev.depth_fraction;
+    ASSERT_LT(across_depth, 1.0);
+  }
+  for (const double foresight_mm : {0.0, 10.0}) {
+    SCOPED_TRACE(::testing::Message() << "foresight " << foresight_mm << " mm");
+    Model model(block);
+    CuttingStageOptions options;
+    options.foresight_mm = foresight_mm;
+    CutHandler handler(options, model.state);
+    const CutEvent a = handler.Apply(0, first, first, eye, model.Targets());
+    ASSERT_EQ(a.status, "cut") << a.message;
+    EXPECT_EQ(a.depth_fraction, foresight_mm > 0 ? across_depth : 1.0);
+    const CutEvent b = handler.Apply(1, second, second, eye, model.Targets());
+    ASSERT_EQ(b.status, "cut") << b.message;
+    EXPECT_EQ(b.depth_fraction, foresight_mm > 0 ? across_depth : 1.0);
+    EXPECT_EQ(CheckedPieces(model.state.RestMesh(), v0), 1);
+  }
+  CuttingStageOptions bad;
+  bad.foresight_mm = -1;
+  EXPECT_THROW(bad.Check(), Error);
 }
 
 // A cut growing across a 40 x 40 x 20 mm block seen from above, one cut point per event

@@ -345,6 +345,12 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
   scene.cutting = {{"keep_connected", 1.5}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  // Session 17: the first event's depth foresees the polyline reaching the outline.
+  EXPECT_TRUE(o.cutting.first_event_foresight);
+  scene.cutting = {{"first_event_foresight", false}};
+  EXPECT_FALSE(ReadPipelineOptions(scene).cutting.first_event_foresight);
+  scene.cutting = {{"first_event_foresight", 3}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
   // Session 7: where S is cut.
   EXPECT_EQ(o.cutting.cut_configuration, "rest");
   scene.cutting = {{"cut_configuration", "current"}};

@@ -89,12 +89,13 @@ constexpr double kDebrisFraction = 0.005;
 constexpr double kBorderSnapEdges = 0.5;
 
 // `line` with each end moved on along its last segment to just beyond the outline of the
-// model seen from `eye_mm`, when the outline is within kBorderSnapEdges edge lengths of it.
+// model seen from `eye_mm`, when the outline is within `reach_mm` of it (kBorderSnapEdges edge
+// lengths for the crack's ends, r_F for the foresight of keep_connected).
 // The outline is where the rays from the eye stop hitting the surface `boundary`.
 std::vector<Eigen::Vector3d> CarryEndsAcrossTheOutline(std::vector<Eigen::Vector3d> line,
                                                        const Eigen::Vector3d& eye_mm,
-                                                       const SurfaceMesh& boundary,
-                                                       double edge_mm) {
+                                                       const SurfaceMesh& boundary, double edge_mm,
+                                                       double reach_mm) {
   if (line.size() < 2 || edge_mm <= 0) return line;
   lift::TriangleBvh bvh;
   bvh.Build(boundary.vertices, boundary.faces);
@@ -111,7 +112,7 @@ std::vector<Eigen::Vector3d> CarryEndsAcrossTheOutline(std::vector<Eigen::Vector
     const Eigen::Vector3d& prev = end == 0 ? line[1] : line[line.size() - 2];
     if ((tip - prev).norm() == 0 || !over_model(tip)) continue;
     const Eigen::Vector3d dir = (tip - prev).normalized();
-    for (double d = step; d <= kBorderSnapEdges * edge_mm + 1e-9; d += step) {
+    for (double d = step; d <= reach_mm + 1e-9; d += step) {
       if (over_model(tip + d * dir)) continue;
       tip += (d + edge_mm / 2) * dir;
       break;
@@ -162,9 +163,18 @@ cutting::CutSummary CutHandler::CutWithRetry(const SurfaceMesh& s, cutting::CutC
   co.on_surface_tolerance = options_.on_surface_tolerance;
   cutting::CutSummary cut = mesh_->Cut(cs, co, change);
   const double exact_tolerance = cutting::CutOptions().on_surface_tolerance;
+  // Vertices merged into S can make S touch the boundary in a point (manifold guard); a
+  // smaller tolerance may resolve it (a rejected event leaves the mesh unchanged). Going
+  // straight to the exact test crossed 265 elements along an earlier crack, whose vertices lie
+  // within rounding of a new S that runs along it, instead of merging them (docs/cutting.md
+  // "Session 16").
+  constexpr double kSmallestTolerance = 0.01;
+  while (cut.status == cutting::CutStatus::kRejected &&
+         co.on_surface_tolerance > kSmallestTolerance) {
+    co.on_surface_tolerance = std::max(kSmallestTolerance, co.on_surface_tolerance / 2);
+    cut = mesh_->Cut(cs, co, change);
+  }
   if (cut.status == cutting::CutStatus::kRejected && co.on_surface_tolerance > exact_tolerance) {
-    // Vertices merged into S can make S touch the boundary in a point (manifold guard);
-    // the exact test may resolve it (a rejected event leaves the mesh unchanged).
     co.on_surface_tolerance = exact_tolerance;
     cut = mesh_->Cut(cs, co, change);
   }
@@ -222,7 +232,8 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
       const std::vector<Eigen::Vector3d> line =
           rest ? CarryEndsAcrossTheOutline(rest_polyline_mm, eye_mm,
                                            ExtractBoundary(state.RestMesh()),
-                                           mesh_->mean_rest_edge_length())
+                                           mesh_->mean_rest_edge_length(),
+                                           kBorderSnapEdges * mesh_->mean_rest_edge_length())
                : polyline_mm;
       const RowMatX3d& positions = rest ? state.rest_positions() : state.positions();
       mesh_->SetDeformation(positions,
@@ -231,9 +242,29 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
       cutting::CutExtrusionOptions ext =
           cutting::CutExtrusionCovering(line, eye_mm, positions, options_.extrusion_margin_mm);
       const double full_depth = ext.extent_away_from_camera_mm;
+      // The first event of a cut foresees its polyline reaching the outline where an end is
+      // within options_.foresight_mm of it (see CuttingStageOptions::foresight_mm).
+      const bool foresight = options_.keep_connected && options_.foresight_mm > 0;
+      std::vector<Eigen::Vector3d> foreseen;
+      if (foresight && rest && applied_points_.empty())
+        foreseen =
+            CarryEndsAcrossTheOutline(rest_polyline_mm, eye_mm, ExtractBoundary(state.RestMesh()),
+                                      mesh_->mean_rest_edge_length(), options_.foresight_mm);
       for (double fraction : kDepthFractions) {
+        if (foresight && fraction > depth_of_cut_) continue;
         depth = fraction;
         ext.extent_away_from_camera_mm = depth * full_depth;
+        if (!foreseen.empty() && foreseen != line && fraction != kDepthFractions[3]) {
+          cutting::CutExtrusionOptions foreseen_ext = cutting::CutExtrusionCovering(
+              foreseen, eye_mm, positions, options_.extrusion_margin_mm);
+          foreseen_ext.extent_away_from_camera_mm *= depth;
+          const cutting::CutSummary trial =
+              CutWithRetry(cutting::ExtrudeCutPolyline(foreseen, eye_mm, foreseen_ext), &change);
+          const bool splits = trial.status == cutting::CutStatus::kCut &&
+                              FindPieces(mesh_->RestMesh()).Count() > pieces_before.Count();
+          *mesh_ = start;
+          if (splits) continue;
+        }
         s = rest ? cutting::ExtrudeCutPolyline(line, eye_mm, ext) : NewPart(line, eye_mm, ext);
         ARREG_CHECK_INPUT(s.faces.rows() > 0, "", "CutHandler::Apply",
                           "every segment of the polyline was applied before");
@@ -260,6 +291,7 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
     if (cut.status == cutting::CutStatus::kCut) {
       ev.status = "cut";
       ev.depth_fraction = depth;
+      if (in_rest && applied_points_.empty()) depth_of_cut_ = depth;
       ev.configuration = in_rest ? "rest" : "current";
       const int v_before = state.num_vertices(), t_before = state.num_tetrahedra();
       std::vector<int> new_elements;

@@ -72,7 +72,8 @@ class CutHandler {
 
  private:
   bool Applied(const Eigen::Vector3d& p) const;
-  // Cuts mesh_ with S; a rejection is retried with the exact on-surface test.
+  // Cuts mesh_ with S; a rejection is retried with the on-surface tolerance halved (down to
+  // 0.01), then with the exact test.
   cutting::CutSummary CutWithRetry(const SurfaceMesh& s, cutting::CutChange* change);
   // The strips of the polyline's segments that have a point not applied before.
   SurfaceMesh NewPart(const std::vector<Eigen::Vector3d>& polyline_mm,
@@ -101,6 +102,9 @@ class CutHandler {
   CuttingStageOptions options_;
   std::unique_ptr<cutting::CuttableMesh> mesh_;
   std::vector<Eigen::Vector3d> applied_points_;  // polyline points of applied events
+  // The depth fraction of the cut's first event in the rest configuration; later events go no
+  // deeper (options_.foresight_mm > 0).
+  double depth_of_cut_ = 1.0;
 };
 
 }  // namespace arreg::pipeline

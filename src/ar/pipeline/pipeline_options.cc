@@ -44,6 +44,8 @@ void CuttingStageOptions::Check() const {
                     "must be >= 0, got ", snap_epsilon);
   ARREG_CHECK_INPUT(std::isfinite(on_surface_tolerance) && on_surface_tolerance >= 0, "",
                     "cutting.on_surface_tolerance", "must be >= 0, got ", on_surface_tolerance);
+  ARREG_CHECK_INPUT(std::isfinite(foresight_mm) && foresight_mm >= 0, "", "cutting.foresight_mm",
+                    "must be >= 0, got ", foresight_mm);
   ARREG_CHECK_INPUT(method == "flips" || method == "bielser", "", "cutting.method",
                     "must be \"flips\" or \"bielser\", got \"", method, "\"");
   ARREG_CHECK_INPUT(cut_configuration == "rest" || cut_configuration == "current", "",
@@ -205,6 +207,7 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("snap_epsilon", &o->snap_epsilon);
   r.Optional("on_surface_tolerance", &o->on_surface_tolerance);
   r.Optional("keep_connected", &o->keep_connected);
+  r.Optional("first_event_foresight", &o->first_event_foresight);
   r.OptionalChoice("cut_configuration", {"rest", "current"}, &o->cut_configuration);
   r.Optional("internal_caps", &o->internal_caps);
   r.Finish();
@@ -319,6 +322,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"snap_epsilon", o.cutting.snap_epsilon},
       {"on_surface_tolerance", o.cutting.on_surface_tolerance},
       {"keep_connected", o.cutting.keep_connected},
+      {"first_event_foresight", o.cutting.first_event_foresight},
       {"cut_configuration", o.cutting.cut_configuration},
       {"internal_caps", o.cutting.internal_caps}};
   j["render"] = {{"enabled", o.render.enabled},

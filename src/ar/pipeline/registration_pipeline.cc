@@ -291,7 +291,9 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     for (size_t i = 0; i < ids.size(); ++i) p0.row(i) = attach_points.row(ids[i]);
     detector.emplace(o.cutting.detector);
     detector->Initialize(p0, ids);
-    cut_handler.emplace(o.cutting, state);
+    CuttingStageOptions co = o.cutting;
+    co.foresight_mm = co.first_event_foresight ? detector->options().neighbour_radius_mm : 0.0;
+    cut_handler.emplace(co, state);
   }
 
   OverlayRenderer overlay(camera, o.render);
