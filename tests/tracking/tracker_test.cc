@@ -221,8 +221,9 @@ TEST(FeatureTracker, MinFeaturesAddsWeakerPointsOnlyWhenTooFewAreStrong) {
     const float response = topped.store().keypoint(static_cast<int>(i)).response;
     EXPECT_GE(response, options.min_hessian_threshold) << "feature " << i;
     EXPECT_LT(response, options.surf.hessian_threshold + 1.0) << "feature " << i;
-    if (i > strong.size())
+    if (i > strong.size()) {
       EXPECT_LE(response, topped.store().keypoint(static_cast<int>(i) - 1).response);
+    }
     for (size_t j = 0; j < i; ++j)
       EXPECT_GE(cv::norm(all[i] - all[j]), options.min_distance_px - 1e-3);
   }
