@@ -7,6 +7,7 @@
 #include <limits>
 #include <map>
 #include <ostream>
+#include <set>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -427,13 +428,20 @@ int FeatureTracker::Detect(const cv::Mat& roi_mask) {
     }
   };
   accept(candidates, room);
-  // Too few: weaker points, strongest first, up to min_features. The points already taken are
-  // found again at the lower threshold and skipped as crowded (distance 0).
+  // Too few: weaker points, strongest first, up to min_features. The lower threshold finds the
+  // points above the threshold again, at the same positions: they were taken or refused above.
   const int wanted = std::min(room, options_.min_features - num_active());
   if (static_cast<int>(accepted.size()) < wanted &&
       options_.min_hessian_threshold < options_.surf.hessian_threshold) {
+    std::set<std::pair<float, float>> seen;
+    for (const SurfKeypoint& kp : candidates) seen.emplace(kp.position_px.x, kp.position_px.y);
     weak_surf_.SetImage(gray_);
     weak_surf_.Detect(roi_mask, &candidates);
+    candidates.erase(std::remove_if(candidates.begin(), candidates.end(),
+                                    [&](const SurfKeypoint& kp) {
+                                      return seen.count({kp.position_px.x, kp.position_px.y}) > 0;
+                                    }),
+                     candidates.end());
     accept(candidates, wanted);
   }
   if (!options_.surf.upright) surf_.ComputeOrientations(&accepted);

@@ -228,6 +228,15 @@ TEST(FeatureTracker, MinFeaturesAddsWeakerPointsOnlyWhenTooFewAreStrong) {
       EXPECT_GE(cv::norm(all[i] - all[j]), options.min_distance_px - 1e-3);
   }
 
+  // Without a minimum distance the points above the threshold are still taken once.
+  options.min_distance_px = 0;
+  FeatureTracker close(options);
+  close.Initialize(faint);
+  const std::vector<cv::Point2f> close_points = DetectedPositions(close);
+  for (size_t i = 0; i < close_points.size(); ++i)
+    for (size_t j = 0; j < i; ++j) EXPECT_NE(close_points[i], close_points[j]);
+  options.min_distance_px = FeatureTrackerOptions().min_distance_px;
+
   // A floor at the threshold adds nothing.
   options.min_hessian_threshold = options.surf.hessian_threshold;
   FeatureTracker floored(options);
