@@ -100,7 +100,7 @@ Mesh CrackToMesh(const SurfaceMesh& crack, const std::vector<bool>& kept) {
     // corefinement does not allow (it crashed on such a crack). Each copy, and the vertex it
     // copies, moves a tiny step towards the centroid of its own faces, so the sheets no longer
     // touch.
-    std::map<std::array<double, 3>, std::vector<size_t>> copies;
+    std::map<Key, std::vector<size_t>> copies;
     for (size_t i = 0; i < points.size(); ++i)
       copies[{CGAL::to_double(points[i].x()), CGAL::to_double(points[i].y()),
               CGAL::to_double(points[i].z())}]
@@ -126,9 +126,9 @@ Mesh CrackToMesh(const SurfaceMesh& crack, const std::vector<bool>& kept) {
     const double step = 1e-6 * (edges > 0 ? edge_sum / edges : 1.0);
     for (const auto& [at, same] : copies) {
       if (same.size() < 2) continue;
+      const Eigen::Vector3d p(at[0], at[1], at[2]);
       for (size_t i : same) {
         if (count[i] == 0) continue;
-        const Eigen::Vector3d p(at[0], at[1], at[2]);
         Eigen::Vector3d d = centroid[i] / count[i] - p;
         if (d.norm() == 0) continue;
         const Eigen::Vector3d moved = p + step * d.normalized();

@@ -227,13 +227,16 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
     bool in_rest = false;
     std::vector<bool> configurations = {false};
     if (options_.cut_configuration == "rest") configurations = {true, false};
+    // The first event of a cut foresees its polyline reaching the outline where an end is
+    // within options_.foresight_mm of it (see CuttingStageOptions::foresight_mm).
+    const bool foresight = options_.keep_connected && options_.foresight_mm > 0;
+    const double edge_mm = mesh_->mean_rest_edge_length();
     for (bool rest : configurations) {
       in_rest = rest;
+      const SurfaceMesh rest_boundary = rest ? ExtractBoundary(state.RestMesh()) : SurfaceMesh();
       const std::vector<Eigen::Vector3d> line =
-          rest ? CarryEndsAcrossTheOutline(rest_polyline_mm, eye_mm,
-                                           ExtractBoundary(state.RestMesh()),
-                                           mesh_->mean_rest_edge_length(),
-                                           kBorderSnapEdges * mesh_->mean_rest_edge_length())
+          rest ? CarryEndsAcrossTheOutline(rest_polyline_mm, eye_mm, rest_boundary, edge_mm,
+                                           kBorderSnapEdges * edge_mm)
                : polyline_mm;
       const RowMatX3d& positions = rest ? state.rest_positions() : state.positions();
       mesh_->SetDeformation(positions,
@@ -242,22 +245,22 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
       cutting::CutExtrusionOptions ext =
           cutting::CutExtrusionCovering(line, eye_mm, positions, options_.extrusion_margin_mm);
       const double full_depth = ext.extent_away_from_camera_mm;
-      // The first event of a cut foresees its polyline reaching the outline where an end is
-      // within options_.foresight_mm of it (see CuttingStageOptions::foresight_mm).
-      const bool foresight = options_.keep_connected && options_.foresight_mm > 0;
       std::vector<Eigen::Vector3d> foreseen;
       if (foresight && rest && applied_points_.empty())
-        foreseen =
-            CarryEndsAcrossTheOutline(rest_polyline_mm, eye_mm, ExtractBoundary(state.RestMesh()),
-                                      mesh_->mean_rest_edge_length(), options_.foresight_mm);
+        foreseen = CarryEndsAcrossTheOutline(rest_polyline_mm, eye_mm, rest_boundary, edge_mm,
+                                             options_.foresight_mm);
+      if (foreseen == line) foreseen.clear();  // no end near the outline: nothing to foresee
+      cutting::CutExtrusionOptions foreseen_ext;
+      if (!foreseen.empty())
+        foreseen_ext = cutting::CutExtrusionCovering(foreseen, eye_mm, positions,
+                                                     options_.extrusion_margin_mm);
+      const double foreseen_full_depth = foreseen_ext.extent_away_from_camera_mm;
       for (double fraction : kDepthFractions) {
         if (foresight && fraction > depth_of_cut_) continue;
         depth = fraction;
         ext.extent_away_from_camera_mm = depth * full_depth;
-        if (!foreseen.empty() && foreseen != line && fraction != kDepthFractions[3]) {
-          cutting::CutExtrusionOptions foreseen_ext = cutting::CutExtrusionCovering(
-              foreseen, eye_mm, positions, options_.extrusion_margin_mm);
-          foreseen_ext.extent_away_from_camera_mm *= depth;
+        if (!foreseen.empty() && fraction != kDepthFractions[3]) {
+          foreseen_ext.extent_away_from_camera_mm = depth * foreseen_full_depth;
           const cutting::CutSummary trial =
               CutWithRetry(cutting::ExtrudeCutPolyline(foreseen, eye_mm, foreseen_ext), &change);
           const bool splits = trial.status == cutting::CutStatus::kCut &&
