@@ -129,6 +129,7 @@ void CutDetector::Initialize(const RowMatX3d& initial_positions_mm, const std::v
   }
   alive_.assign(n, 1);
   polyline_.clear();
+  refused_segments_.clear();
   for (Probe& probe : probes_) probe = Probe();
   front_at_border_ = back_at_border_ = false;
   frame_ = 0;
@@ -270,6 +271,7 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   result->lone_features = 0;
   result->one_sided_clusters = 0;
   result->refused_points = 0;
+  result->refused_segments = 0;
   result->pairs_removed_by_death = 0;
   result->segment_added = false;
   result->look_ahead_mm.reset();
@@ -363,7 +365,12 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
     for (const bool front : {false, true}) {
       CutPoint point;
       if (!ProbeGrowth(front, result, &point)) continue;
-      CommitCutPoint(point, front ? Placement::kFront : Placement::kBack, result);
+      const Placement placement = front ? Placement::kFront : Placement::kBack;
+      if (!SegmentAccepted(point, placement)) {
+        ++result->refused_segments;
+        continue;
+      }
+      CommitCutPoint(point, placement, result);
       break;
     }
   }
@@ -445,6 +452,10 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
       if (placement == Placement::kRefuse) {
         ++result->refused_points;
         DropClusterFromCandidates();
+      } else if (!SegmentAccepted(point, placement)) {
+        placement = Placement::kRefuse;
+        ++result->refused_segments;
+        DropClusterFromCandidates();
       }
     }
     if (placement == Placement::kRefuse) break;
@@ -490,6 +501,7 @@ double CutDetector::Measure(int l, int m) const {
 void CutDetector::CommitCutPoint(const CutPoint& point, Placement placement,
                                  DetectionResult* result) {
   const bool front = InsertCutPoint(point, placement);
+  refused_segments_.clear();
   result->new_cut_points.push_back(point);
   if (polyline_.size() >= 2) {
     result->segment_added = true;
@@ -498,16 +510,41 @@ void CutDetector::CommitCutPoint(const CutPoint& point, Placement placement,
     const Eigen::Vector3d dir = end.position_mm - prev.position_mm;
     if (options_.look_ahead && dir.norm() > 0.0)
       result->look_ahead_mm = end.position_mm + options_.cut_point_radius_mm * dir.normalized();
-    if (polyline_.size() == 2) {
-      front_at_border_ = ExtremityAtBorder(true);
-      back_at_border_ = ExtremityAtBorder(false);
-    } else if (front) {
-      front_at_border_ = ExtremityAtBorder(true);
-    } else {
-      back_at_border_ = ExtremityAtBorder(false);
-    }
+    UpdateBorderState(front);
   }
   RemovePairsNear(point.position_mm, &result->pairs_removed_by_cut);
+}
+
+void CutDetector::UpdateBorderState(bool front) {
+  if (polyline_.size() == 2) {
+    front_at_border_ = ExtremityAtBorder(true);
+    back_at_border_ = ExtremityAtBorder(false);
+  } else if (front) {
+    front_at_border_ = ExtremityAtBorder(true);
+  } else {
+    back_at_border_ = ExtremityAtBorder(false);
+  }
+}
+
+bool CutDetector::SegmentAccepted(const CutPoint& point, Placement placement) {
+  if (!segment_check_ || polyline_.empty() || placement == Placement::kReplace) return true;
+  // The extremity it joins (InsertCutPoint puts a point beside a lone one at the back).
+  const bool front = placement == Placement::kFront && polyline_.size() >= 2;
+  const Eigen::Vector3d end = (front ? polyline_.front() : polyline_.back()).initial_position_mm;
+  const double r_pc2 = options_.cut_point_radius_mm * options_.cut_point_radius_mm;
+  for (const auto& [extremity, refused] : refused_segments_)
+    if (extremity == end && (refused - point.initial_position_mm).squaredNorm() < r_pc2)
+      return false;
+  // Tried on the polyline as it would be, then restored.
+  const std::vector<CutPoint> polyline = polyline_;
+  const bool front_at_border = front_at_border_, back_at_border = back_at_border_;
+  UpdateBorderState(InsertCutPoint(point, placement));
+  const bool accepted = segment_check_(ExtendedPolyline(false), ExtendedPolyline(true));
+  polyline_ = polyline;
+  front_at_border_ = front_at_border;
+  back_at_border_ = back_at_border;
+  if (!accepted) refused_segments_.emplace_back(end, point.initial_position_mm);
+  return accepted;
 }
 
 void CutDetector::BuildProbe(bool front) {

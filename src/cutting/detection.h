@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <unordered_map>
@@ -243,6 +244,9 @@ struct DetectionResult {
   int refused_points = 0;      // cut points refused this frame as no growth of the polyline
   // (or with too few pairs to start one). Each of these three counts a cluster once: a frame
   // without a polyline makes a second pass, with bridges, and reports the larger count.
+  // Points refused this frame by the segment check (CutDetector::SetSegmentCheck): the segment
+  // they would add makes a cut the caller cannot apply.
+  int refused_segments = 0;
   int pairs_removed_by_death = 0;  // pairs with a feature that died this frame
   int pairs_bridged = 0;   // pairs added this frame in place of dead ones (bridge_radius_factor)
   int probe_pairs = 0;     // alive probe pairs evaluated this frame (probe_length_factor)
@@ -269,6 +273,20 @@ class CutDetector {
 
   // Evaluates one frame; throws arreg::Error for unknown or repeated ids or mismatched rows.
   void Update(const FrameFeatures& frame, DetectionResult* result);
+
+  // A test of the polyline a new segment would make, given with its extensions (as
+  // ExtendedPolyline) in this frame's positions p^t and at frame 0. False refuses the point:
+  // its cluster leaves the frame's candidates (DetectionResult::refused_segments) and its pairs
+  // stay. The pipeline refuses a segment whose cut surface would split the model at every
+  // depth (cutting.keep_connected): a cut that would separate the object is no cut the model
+  // can follow, and the strain concentrations at the two re-entrant corners of a stretched
+  // band's stem, joined into one polyline, make exactly that (docs/detection.md, "Segments
+  // that would split the model"). A point within r_pc (frame 0) of one refused at the same
+  // extremity is refused without a new test until the polyline changes. Not set: every
+  // segment is accepted.
+  using SegmentCheck = std::function<bool(const std::vector<Eigen::Vector3d>& extended_mm,
+                                          const std::vector<Eigen::Vector3d>& extended_initial_mm)>;
+  void SetSegmentCheck(SegmentCheck check) { segment_check_ = std::move(check); }
 
   // The options in use: after Initialize, the radii are those resolved from the features.
   const CutDetectorOptions& options() const { return options_; }
@@ -311,6 +329,11 @@ class CutDetector {
   // Inserts a selected point at the given place and updates the look-ahead, the border state
   // and C^t (pairs crossing its r_pc sphere).
   void CommitCutPoint(const CutPoint& point, Placement placement, DetectionResult* result);
+  // The border state of the extremities after a point went to the front or the back.
+  void UpdateBorderState(bool front);
+  // Whether the segment check (SetSegmentCheck) accepts the polyline with the point placed so;
+  // true when no check is set or the point adds no segment.
+  bool SegmentAccepted(const CutPoint& point, Placement placement);
   // d_l - d_m (d = p^t - p^1, eq. 7.9) and the pair's vector in the positions mu2 compares with
   // frame 0 (eq. 7.10: p^t or p^1, CutDetectorOptions::measure), this frame.
   // Inline: it is in the per-frame loop over C^t.
@@ -385,6 +408,10 @@ class CutDetector {
   std::vector<std::pair<int, double>> probe_outliers_;  // (index into the probe's pairs, mu)
   bool front_at_border_ = false;
   bool back_at_border_ = false;
+  SegmentCheck segment_check_;
+  // Points the segment check refused since the polyline last changed: (extremity, point), at
+  // frame 0.
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> refused_segments_;
   int frame_ = 0;
   double threshold_ = 0.0;  // this frame's outlier threshold max(tau * mean(mu), floor) [mm]
   // Per-frame scratch, indexed by feature.

@@ -150,6 +150,44 @@ TEST(CutHandler, KeepConnectedCutsShallowerInsteadOfSplitting) {
   }
 }
 
+// SplitsTheModel answers whether Apply would reject the event because S splits the model at
+// every depth (keep_connected), without changing the topology. A line across the 20 mm block
+// seen from above is cut shallower (no); across a slab one element thick, S cuts it through at
+// every depth tried (yes, and Apply rejects it; the stem of the synthetic bands is such a slab,
+// docs/detection.md "Segments that would split the model"); a line ending inside the slab does
+// not split it (no); without keep_connected nothing is refused (no).
+TEST(CutHandler, SplitsTheModelForeseesTheRejectionOfKeepConnected) {
+  const Eigen::Vector3d eye(20, 20, 200);
+  const auto line = [](double z, double x1) {
+    return std::vector<Eigen::Vector3d>{Eigen::Vector3d(-5, 20.3, z), Eigen::Vector3d(x1, 20.3, z)};
+  };
+  struct Case {
+    const char* name;
+    double height_mm;
+    int layers;
+    double x1;
+    bool keep_connected;
+    bool splits;
+  };
+  for (const Case& c : {Case{"block", 20, 4, 45, true, false}, Case{"slab", 4, 1, 45, true, true},
+                        Case{"slab, partial line", 4, 1, 20, true, false},
+                        Case{"slab, transection", 4, 1, 45, false, false}}) {
+    SCOPED_TRACE(c.name);
+    const TetMesh mesh = MakeBoxTetMesh(Eigen::Vector3d(40, 40, c.height_mm),
+                                        Eigen::Vector3i(8, 8, c.layers), BoxTetSplit::kSix);
+    Model model(mesh, c.height_mm);
+    CuttingStageOptions options;
+    options.keep_connected = c.keep_connected;
+    CutHandler handler(options, model.state);
+    const std::vector<Eigen::Vector3d> l = line(c.height_mm, c.x1);
+    EXPECT_EQ(handler.SplitsTheModel(l, l, eye, model.state), c.splits);
+    EXPECT_EQ(handler.mesh().num_tetrahedra(), mesh.num_tetrahedra());
+    EXPECT_EQ(handler.mesh().num_vertices(), mesh.num_vertices());
+    const CutEvent ev = handler.Apply(0, l, l, eye, model.Targets());
+    EXPECT_EQ(ev.status, c.splits ? "rejected" : "cut") << ev.message;
+  }
+}
+
 // A cut seen early: its first event's polyline ends 6 mm inside the block's outline on both
 // sides, so the S that spans the block's depth along it keeps the block in one piece and was
 // applied whole. With foresight (CuttingStageOptions::foresight_mm, r_F in the pipeline) the

@@ -351,6 +351,12 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_FALSE(ReadPipelineOptions(scene).cutting.first_event_foresight);
   scene.cutting = {{"first_event_foresight", 3}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  // Session 18: segments that would split the model are refused.
+  EXPECT_TRUE(o.cutting.refuse_splitting_segments);
+  scene.cutting = {{"refuse_splitting_segments", false}};
+  EXPECT_FALSE(ReadPipelineOptions(scene).cutting.refuse_splitting_segments);
+  scene.cutting = {{"refuse_splitting_segments", "yes"}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
   // Session 7: where S is cut.
   EXPECT_EQ(o.cutting.cut_configuration, "rest");
   scene.cutting = {{"cut_configuration", "current"}};

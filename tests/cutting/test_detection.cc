@@ -108,14 +108,17 @@ struct SeamRun {
   std::vector<double> tip_at_point;
   std::vector<Eigen::Vector3d> extended_initial;
   int frames = 0;
-  int look_aheads = 0;  // frames whose result had a look-ahead point (checked in RunSeam)
-  int bridged = 0;      // pairs bridged over the frames
-  int died = 0;         // features lost (lip_loss_mm)
+  int look_aheads = 0;       // frames whose result had a look-ahead point (checked in RunSeam)
+  int bridged = 0;           // pairs bridged over the frames
+  int died = 0;              // features lost (lip_loss_mm)
+  int refused_segments = 0;  // points refused by the segment check over the frames
 };
 
-SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOptions& options) {
+SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOptions& options,
+                const CutDetector::SegmentCheck& check = {}) {
   CutDetector detector(options);
   detector.Initialize(g.p0, g.ids);
+  if (check) detector.SetSegmentCheck(check);
   SeamRun run;
   run.resolved = detector.options();
   std::mt19937 rng(s.seed);
@@ -164,6 +167,7 @@ SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOp
     }
     detector.Update(frame, &result);
     run.bridged += result.pairs_bridged;
+    run.refused_segments += result.refused_segments;
     if (result.look_ahead_mm) {
       // The look-ahead point lies on the r_pc sphere around the grown extremity, on the line
       // through the extremity's last segment.
@@ -484,6 +488,60 @@ TEST(CutDetector, SeamPulledApartGivesCutPointsAlongTheSeam) {
       // ...and, starting at the border, is extended across it (boundary handling).
       EXPECT_LT(run.extended_initial.front().x(), 0.0);
     }
+}
+
+// The seam cut with a caller that cannot cut beyond 50 mm along it (in the pipeline: the cut
+// surface of a segment there would split the model at every depth, cutting.keep_connected).
+// The segment check sees each segment's polyline before it is added, with its extensions, at
+// frame 0 and in this frame; the points it refuses leave the polyline as it was, so the
+// polyline grows up to the limit and no further, with the points before it as without a check.
+// A point near one refused at the same extremity is refused without asking again. A check that
+// accepts everything changes nothing.
+TEST(CutDetector, SegmentCheckRefusesSegmentsItsCallerCannotCut) {
+  const FeatureGrid g = MakeGrid();
+  const SeamScenario scenario;
+  const SeamRun free_run = RunSeam(g, scenario, CutDetectorOptions());
+  ASSERT_GE(free_run.points.size(), 8u);
+  int calls = 0;
+  const SeamRun accepting = RunSeam(g, scenario, CutDetectorOptions(),
+                                    [&](const std::vector<Eigen::Vector3d>& extended_mm,
+                                        const std::vector<Eigen::Vector3d>& extended_initial_mm) {
+                                      EXPECT_EQ(extended_mm.size(), extended_initial_mm.size());
+                                      EXPECT_GE(extended_initial_mm.size(), 2u);
+                                      ++calls;
+                                      return true;
+                                    });
+  // Every segment was asked about once (the first point adds none).
+  EXPECT_EQ(calls, static_cast<int>(free_run.points.size()) - 1);
+  EXPECT_EQ(accepting.refused_segments, 0);
+  ASSERT_EQ(accepting.points.size(), free_run.points.size());
+  for (size_t i = 0; i < free_run.points.size(); ++i)
+    EXPECT_EQ(accepting.points[i].initial_position_mm, free_run.points[i].initial_position_mm);
+
+  constexpr double kLimitMm = 50.0;
+  const double r_pc = free_run.resolved.cut_point_radius_mm;
+  const auto beyond = [&](const std::vector<Eigen::Vector3d>& line) {
+    for (const Eigen::Vector3d& p : line)
+      if (scenario.Coordinates(p).x() > kLimitMm) return true;
+    return false;
+  };
+  calls = 0;
+  const SeamRun limited = RunSeam(g, scenario, CutDetectorOptions(),
+                                  [&](const std::vector<Eigen::Vector3d>&,
+                                      const std::vector<Eigen::Vector3d>& extended_initial_mm) {
+                                    ++calls;
+                                    return !beyond(extended_initial_mm);
+                                  });
+  EXPECT_FALSE(beyond(limited.extended_initial));
+  EXPECT_GT(scenario.Coordinates(limited.extended_initial.back()).x(), kLimitMm - 2 * r_pc);
+  EXPECT_GT(limited.refused_segments, 0);
+  // Some refusals came from the cache: fewer calls refused than points.
+  const int refusing_calls = calls - (static_cast<int>(limited.points.size()) - 1);
+  EXPECT_GT(refusing_calls, 0);
+  EXPECT_LT(refusing_calls, limited.refused_segments);
+  ASSERT_LT(limited.points.size(), free_run.points.size());
+  for (size_t i = 0; i < limited.points.size(); ++i)
+    EXPECT_EQ(limited.points[i].initial_position_mm, free_run.points[i].initial_position_mm);
 }
 
 // The tear of the seam tests whose lips the tracker loses: features within 10 mm of the seam,

@@ -239,6 +239,7 @@ nlohmann::json MakeFrameRecord(const pipeline::FrameState& frame, const PinholeC
                  {"lone_features", d.lone_features},
                  {"one_sided_clusters", d.one_sided_clusters},
                  {"refused_points", d.refused_points},
+                 {"refused_segments", d.refused_segments},
                  {"new_cut_points", std::move(new_points)},
                  {"segment_added", d.segment_added},
                  {"polyline_mm", std::move(polyline_mm)},

@@ -143,6 +143,17 @@ struct CutHandler::Pieces {
   }
 };
 
+// One event's cut as PlanCut finds it; mesh_ holds it when cut.status is kCut.
+struct CutHandler::Plan {
+  SurfaceMesh s;  // the S cut (or the last one tried)
+  cutting::CutChange change;
+  cutting::CutSummary cut;
+  Pieces pieces_after;  // of the cut that applies
+  double depth = 0.0;   // of S, as a fraction of the depth that covers the model
+  bool in_rest = false;
+  bool splits = false;  // the last S tried was refused by keep_connected
+};
+
 CutHandler::Pieces CutHandler::FindPieces(const TetMesh& rest) {
   Pieces pieces;
   int count = 0;
@@ -181,6 +192,118 @@ cutting::CutSummary CutHandler::CutWithRetry(const SurfaceMesh& s, cutting::CutC
   return cut;
 }
 
+CutHandler::Plan CutHandler::PlanCut(const std::vector<Eigen::Vector3d>& polyline_mm,
+                                     const std::vector<Eigen::Vector3d>& rest_polyline_mm,
+                                     const Eigen::Vector3d& eye_mm,
+                                     const mechanics::MechanicalState& state,
+                                     const Pieces& pieces_before) {
+  // In the rest configuration (the frame-0 polyline along the frame-0 rays) S of the applied
+  // segments is the same surface as before and lies on the crack, so the whole polyline is
+  // cut and the new part continues the crack where the last event left it. In the current
+  // configuration (this frame's polyline and rays; the model may have inverted elements,
+  // which CuttableMesh subdivides in the rest configuration) only the segments with a point
+  // not applied before are cut: the detector keeps its cut points, so a segment between two
+  // applied points lies on the crack already, and cutting it again with this frame's S
+  // (the model has moved since) would cross the elements along the crack a second time.
+  // An event the rest configuration cannot apply, or that would cut off a sliver there (the
+  // polyline turned away from an earlier look-ahead, and the two cracks cut off the elements
+  // between them), is tried in the current configuration.
+  // A cut that is not applied leaves mesh_ unchanged; one that splits the body is undone.
+  Plan plan;
+  SurfaceMesh& s = plan.s;
+  cutting::CutChange& change = plan.change;
+  cutting::CutSummary& cut = plan.cut;
+  double& depth = plan.depth;
+  bool& in_rest = plan.in_rest;
+  std::vector<bool> configurations = {false};
+  if (options_.cut_configuration == "rest") configurations = {true, false};
+  // The first event of a cut foresees its polyline reaching the outline where an end is
+  // within options_.foresight_mm of it (see CuttingStageOptions::foresight_mm).
+  const bool foresight = options_.keep_connected && options_.foresight_mm > 0;
+  const double edge_mm = mesh_->mean_rest_edge_length();
+  for (bool rest : configurations) {
+    in_rest = rest;
+    const SurfaceMesh rest_boundary = rest ? ExtractBoundary(state.RestMesh()) : SurfaceMesh();
+    const std::vector<Eigen::Vector3d> line =
+        rest ? CarryEndsAcrossTheOutline(rest_polyline_mm, eye_mm, rest_boundary, edge_mm,
+                                         kBorderSnapEdges * edge_mm)
+             : polyline_mm;
+    const RowMatX3d& positions = rest ? state.rest_positions() : state.positions();
+    mesh_->SetDeformation(positions,
+                          rest ? RowMatX3d::Zero(state.num_vertices(), 3) : state.velocities());
+    const cutting::CuttableMesh start = *mesh_;  // this configuration, before any attempt
+    cutting::CutExtrusionOptions ext =
+        cutting::CutExtrusionCovering(line, eye_mm, positions, options_.extrusion_margin_mm);
+    const double full_depth = ext.extent_away_from_camera_mm;
+    std::vector<Eigen::Vector3d> foreseen;
+    if (foresight && rest && applied_points_.empty())
+      foreseen = CarryEndsAcrossTheOutline(rest_polyline_mm, eye_mm, rest_boundary, edge_mm,
+                                           options_.foresight_mm);
+    if (foreseen == line) foreseen.clear();  // no end near the outline: nothing to foresee
+    cutting::CutExtrusionOptions foreseen_ext;
+    if (!foreseen.empty())
+      foreseen_ext =
+          cutting::CutExtrusionCovering(foreseen, eye_mm, positions, options_.extrusion_margin_mm);
+    const double foreseen_full_depth = foreseen_ext.extent_away_from_camera_mm;
+    for (double fraction : kDepthFractions) {
+      if (foresight && fraction > depth_of_cut_) continue;
+      depth = fraction;
+      ext.extent_away_from_camera_mm = depth * full_depth;
+      if (!foreseen.empty() && fraction != kDepthFractions[3]) {
+        foreseen_ext.extent_away_from_camera_mm = depth * foreseen_full_depth;
+        const cutting::CutSummary trial =
+            CutWithRetry(cutting::ExtrudeCutPolyline(foreseen, eye_mm, foreseen_ext), &change);
+        const bool splits = trial.status == cutting::CutStatus::kCut &&
+                            FindPieces(mesh_->RestMesh()).Count() > pieces_before.Count();
+        *mesh_ = start;
+        if (splits) continue;
+      }
+      s = rest ? cutting::ExtrudeCutPolyline(line, eye_mm, ext) : NewPart(line, eye_mm, ext);
+      ARREG_CHECK_INPUT(s.faces.rows() > 0, "", "CutHandler::Apply",
+                        "every segment of the polyline was applied before");
+      cut = CutWithRetry(s, &change);
+      plan.splits = false;
+      if (cut.status != cutting::CutStatus::kCut) break;
+      plan.pieces_after = FindPieces(mesh_->RestMesh());
+      if (rest && plan.pieces_after.Slivers() > pieces_before.Slivers()) {
+        // The polyline turned away from an earlier look-ahead, and the two cracks cut off
+        // the elements between them; this frame's strip (current configuration) may not.
+        *mesh_ = start;
+        cut.status = cutting::CutStatus::kRejected;
+        cut.message = "S cuts off a sliver of the model";
+        break;
+      }
+      if (!options_.keep_connected || plan.pieces_after.Count() <= pieces_before.Count()) break;
+      *mesh_ = start;
+      cut.status = cutting::CutStatus::kRejected;
+      cut.message = "S splits the body at every depth tried (cutting.keep_connected)";
+      plan.splits = true;
+    }
+    if (cut.status == cutting::CutStatus::kCut) break;
+  }
+  return plan;
+}
+
+bool CutHandler::SplitsTheModel(const std::vector<Eigen::Vector3d>& polyline_mm,
+                                const std::vector<Eigen::Vector3d>& rest_polyline_mm,
+                                const Eigen::Vector3d& eye_mm,
+                                const mechanics::MechanicalState& state) {
+  if (!options_.keep_connected || rest_polyline_mm.size() != polyline_mm.size() ||
+      mesh_->num_vertices() != state.num_vertices() ||
+      mesh_->num_tetrahedra() != state.num_tetrahedra())
+    return false;
+  const cutting::CuttableMesh before = *mesh_;
+  bool splits = false;
+  try {
+    splits =
+        PlanCut(polyline_mm, rest_polyline_mm, eye_mm, state, FindPieces(before.RestMesh())).splits;
+  } catch (const Error&) {
+    // Apply reports the failure when the segment comes.
+  }
+  *mesh_ = before;
+  return splits;
+}
+
 CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyline_mm,
                            const std::vector<Eigen::Vector3d>& rest_polyline_mm,
                            const Eigen::Vector3d& eye_mm, const CutTargets& t,
@@ -206,89 +329,12 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
                       " vertices and ", state.num_tetrahedra(), " elements, the cut topology ",
                       mesh_->num_vertices(), " and ", mesh_->num_tetrahedra());
     const cutting::CuttableMesh before = *mesh_;
-    const Pieces pieces_before = FindPieces(before.RestMesh());
-    // In the rest configuration (the frame-0 polyline along the frame-0 rays) S of the applied
-    // segments is the same surface as before and lies on the crack, so the whole polyline is
-    // cut and the new part continues the crack where the last event left it. In the current
-    // configuration (this frame's polyline and rays; the model may have inverted elements,
-    // which CuttableMesh subdivides in the rest configuration) only the segments with a point
-    // not applied before are cut: the detector keeps its cut points, so a segment between two
-    // applied points lies on the crack already, and cutting it again with this frame's S
-    // (the model has moved since) would cross the elements along the crack a second time.
-    // An event the rest configuration cannot apply, or that would cut off a sliver there (the
-    // polyline turned away from an earlier look-ahead, and the two cracks cut off the elements
-    // between them), is tried in the current configuration.
-    // A cut that is not applied leaves mesh_ unchanged; one that splits the body is undone.
-    SurfaceMesh s;
-    cutting::CutChange change;
-    cutting::CutSummary cut;
-    Pieces pieces_after;  // of the cut that applies
-    double depth = 0.0;
-    bool in_rest = false;
-    std::vector<bool> configurations = {false};
-    if (options_.cut_configuration == "rest") configurations = {true, false};
-    // The first event of a cut foresees its polyline reaching the outline where an end is
-    // within options_.foresight_mm of it (see CuttingStageOptions::foresight_mm).
-    const bool foresight = options_.keep_connected && options_.foresight_mm > 0;
-    const double edge_mm = mesh_->mean_rest_edge_length();
-    for (bool rest : configurations) {
-      in_rest = rest;
-      const SurfaceMesh rest_boundary = rest ? ExtractBoundary(state.RestMesh()) : SurfaceMesh();
-      const std::vector<Eigen::Vector3d> line =
-          rest ? CarryEndsAcrossTheOutline(rest_polyline_mm, eye_mm, rest_boundary, edge_mm,
-                                           kBorderSnapEdges * edge_mm)
-               : polyline_mm;
-      const RowMatX3d& positions = rest ? state.rest_positions() : state.positions();
-      mesh_->SetDeformation(positions,
-                            rest ? RowMatX3d::Zero(state.num_vertices(), 3) : state.velocities());
-      const cutting::CuttableMesh start = *mesh_;  // this configuration, before any attempt
-      cutting::CutExtrusionOptions ext =
-          cutting::CutExtrusionCovering(line, eye_mm, positions, options_.extrusion_margin_mm);
-      const double full_depth = ext.extent_away_from_camera_mm;
-      std::vector<Eigen::Vector3d> foreseen;
-      if (foresight && rest && applied_points_.empty())
-        foreseen = CarryEndsAcrossTheOutline(rest_polyline_mm, eye_mm, rest_boundary, edge_mm,
-                                             options_.foresight_mm);
-      if (foreseen == line) foreseen.clear();  // no end near the outline: nothing to foresee
-      cutting::CutExtrusionOptions foreseen_ext;
-      if (!foreseen.empty())
-        foreseen_ext = cutting::CutExtrusionCovering(foreseen, eye_mm, positions,
-                                                     options_.extrusion_margin_mm);
-      const double foreseen_full_depth = foreseen_ext.extent_away_from_camera_mm;
-      for (double fraction : kDepthFractions) {
-        if (foresight && fraction > depth_of_cut_) continue;
-        depth = fraction;
-        ext.extent_away_from_camera_mm = depth * full_depth;
-        if (!foreseen.empty() && fraction != kDepthFractions[3]) {
-          foreseen_ext.extent_away_from_camera_mm = depth * foreseen_full_depth;
-          const cutting::CutSummary trial =
-              CutWithRetry(cutting::ExtrudeCutPolyline(foreseen, eye_mm, foreseen_ext), &change);
-          const bool splits = trial.status == cutting::CutStatus::kCut &&
-                              FindPieces(mesh_->RestMesh()).Count() > pieces_before.Count();
-          *mesh_ = start;
-          if (splits) continue;
-        }
-        s = rest ? cutting::ExtrudeCutPolyline(line, eye_mm, ext) : NewPart(line, eye_mm, ext);
-        ARREG_CHECK_INPUT(s.faces.rows() > 0, "", "CutHandler::Apply",
-                          "every segment of the polyline was applied before");
-        cut = CutWithRetry(s, &change);
-        if (cut.status != cutting::CutStatus::kCut) break;
-        pieces_after = FindPieces(mesh_->RestMesh());
-        if (rest && pieces_after.Slivers() > pieces_before.Slivers()) {
-          // The polyline turned away from an earlier look-ahead, and the two cracks cut off
-          // the elements between them; this frame's strip (current configuration) may not.
-          *mesh_ = start;
-          cut.status = cutting::CutStatus::kRejected;
-          cut.message = "S cuts off a sliver of the model";
-          break;
-        }
-        if (!options_.keep_connected || pieces_after.Count() <= pieces_before.Count()) break;
-        *mesh_ = start;
-        cut.status = cutting::CutStatus::kRejected;
-        cut.message = "S splits the body at every depth tried (cutting.keep_connected)";
-      }
-      if (cut.status == cutting::CutStatus::kCut) break;
-    }
+    Plan plan =
+        PlanCut(polyline_mm, rest_polyline_mm, eye_mm, state, FindPieces(before.RestMesh()));
+    const SurfaceMesh& s = plan.s;
+    const cutting::CutSummary& cut = plan.cut;
+    const double depth = plan.depth;
+    const bool in_rest = plan.in_rest;
     const cutting::CutSurface cs{s.vertices, s.faces};
     ev.message = cut.message;
     if (cut.status == cutting::CutStatus::kCut) {
@@ -300,12 +346,12 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
       std::vector<int> new_elements;
       try {
         // Throws only for elements of non-positive rest volume, which the cutter never makes.
-        new_elements = cutting::ApplyCutChange(change, &state);
+        new_elements = cutting::ApplyCutChange(plan.change, &state);
       } catch (const Error&) {
         *mesh_ = before;
         throw;
       }
-      cutting::ReembedAfterCut(change, new_elements, state, *t.features_rest_mm,
+      cutting::ReembedAfterCut(plan.change, new_elements, state, *t.features_rest_mm,
                                t.feature_embedding);
       for (int r = 0; r < nf; ++r)
         if (features[r].spring >= 0)
@@ -320,7 +366,7 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
       for (size_t k = 0; k < internal.size(); ++k) {
         if (split && SplitInternal((*t.internal_original)[k], crack, rest, state, k, t, &ev))
           continue;
-        cutting::ReembedAfterCut(change, new_elements, state, (*t.internal_rest_mm)[k],
+        cutting::ReembedAfterCut(plan.change, new_elements, state, (*t.internal_rest_mm)[k],
                                  &(*t.internal_embedding)[k]);
         const RowMatX3d points = (*t.internal_embedding)[k].Positions(after, state.tetrahedra());
         const RowMatX3i kept = cutting::RemoveTrianglesCrossing(points, internal[k].faces, cs);
@@ -338,7 +384,7 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
       }
       applied_points_.insert(applied_points_.end(), polyline_mm.begin(), polyline_mm.end());
       // The state is numbered like mesh_, so the pieces found there are the state's.
-      ev.welded_vertices = WeldDebris(pieces_after, rest, &state);
+      ev.welded_vertices = WeldDebris(plan.pieces_after, rest, &state);
       ev.new_vertices = state.num_vertices() - v_before;
       ev.new_tetrahedra = state.num_tetrahedra() - t_before;
     } else {

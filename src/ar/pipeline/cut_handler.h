@@ -60,6 +60,14 @@ class CutHandler {
                  const Eigen::Vector3d& eye_mm, const CutTargets& targets,
                  SurfaceMesh* cut_surface = nullptr);
 
+  // Whether Apply with these arguments would reject the event because S splits the model at
+  // every depth tried, in every configuration (options.keep_connected); false when it would
+  // cut, or reject or fail for another reason. Leaves the topology unchanged; the cost of one
+  // event's cut attempts (CutDetector::SetSegmentCheck asks before adding a segment).
+  bool SplitsTheModel(const std::vector<Eigen::Vector3d>& polyline_mm,
+                      const std::vector<Eigen::Vector3d>& rest_polyline_mm,
+                      const Eigen::Vector3d& eye_mm, const mechanics::MechanicalState& state);
+
   // The persistent topology (rest/current positions as of the last event).
   const cutting::CuttableMesh& mesh() const { return *mesh_; }
 
@@ -90,6 +98,12 @@ class CutHandler {
   // in the .cc.
   struct Pieces;
   static Pieces FindPieces(const TetMesh& rest);
+  // Finds the event's cut: the configurations and depths tried, as documented in Apply. On
+  // return mesh_ holds the cut when the plan's status is kCut, else it is as before.
+  struct Plan;
+  Plan PlanCut(const std::vector<Eigen::Vector3d>& polyline_mm,
+               const std::vector<Eigen::Vector3d>& rest_polyline_mm, const Eigen::Vector3d& eye_mm,
+               const mechanics::MechanicalState& state, const Pieces& pieces_before);
   // Welds every debris piece of the state, given its pieces and rest mesh (see FollowWelds);
   // returns how many vertices were welded by this call beyond those welded before.
   int WeldDebris(const Pieces& pieces, const TetMesh& rest, mechanics::MechanicalState* state);

@@ -208,6 +208,7 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("on_surface_tolerance", &o->on_surface_tolerance);
   r.Optional("keep_connected", &o->keep_connected);
   r.Optional("first_event_foresight", &o->first_event_foresight);
+  r.Optional("refuse_splitting_segments", &o->refuse_splitting_segments);
   r.OptionalChoice("cut_configuration", {"rest", "current"}, &o->cut_configuration);
   r.Optional("internal_caps", &o->internal_caps);
   r.Finish();
@@ -323,6 +324,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"on_surface_tolerance", o.cutting.on_surface_tolerance},
       {"keep_connected", o.cutting.keep_connected},
       {"first_event_foresight", o.cutting.first_event_foresight},
+      {"refuse_splitting_segments", o.cutting.refuse_splitting_segments},
       {"cut_configuration", o.cutting.cut_configuration},
       {"internal_caps", o.cutting.internal_caps}};
   j["render"] = {{"enabled", o.render.enabled},

@@ -294,6 +294,14 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     CuttingStageOptions co = o.cutting;
     co.foresight_mm = co.first_event_foresight ? detector->options().neighbour_radius_mm : 0.0;
     cut_handler.emplace(co, state);
+    // A segment whose cut keep_connected would reject at every depth is no growth
+    // (CuttingStageOptions::refuse_splitting_segments).
+    if (co.keep_connected && co.refuse_splitting_segments)
+      detector->SetSegmentCheck([&](const std::vector<Eigen::Vector3d>& extended_mm,
+                                    const std::vector<Eigen::Vector3d>& extended_initial_mm) {
+        return !cut_handler->SplitsTheModel(extended_mm, extended_initial_mm,
+                                            camera.CenterInWorld(), state);
+      });
   }
 
   OverlayRenderer overlay(camera, o.render);
