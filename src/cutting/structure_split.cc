@@ -15,8 +15,10 @@
 #include <array>
 #include <cmath>
 #include <map>
+#include <numeric>
 #include <set>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "core/error.h"
@@ -363,6 +365,45 @@ namespace {
 
 // One try of SplitAlongCrack (below), without its final check: a capped result is only meant to
 // be used when it is a closed oriented manifold.
+// The corefinement numbers the vertices it adds in an order that follows addresses in memory:
+// the same split came out numbered differently from two builds. Renumbers the vertices from
+// `fixed` on (the input's keep their indices, which EmbedSplitStructure relies on) in the order
+// of their positions, the copies of one position by the side their embedding point lies on
+// (along a direction no mesh is aligned with: the offsets are opposite, and the normals they
+// follow are sums whose rounding follows the same order), starts each face at its smallest
+// index (keeping its orientation) and sorts the faces, so the output depends on the geometry.
+void NumberCanonically(int fixed, std::vector<Eigen::Vector3d>* positions,
+                       std::vector<Eigen::Vector3d>* embed_at,
+                       std::vector<std::array<int, 3>>* faces) {
+  const int n = static_cast<int>(positions->size());
+  std::vector<int> order(n - fixed);
+  std::iota(order.begin(), order.end(), fixed);
+  const Eigen::Vector3d generic = Eigen::Vector3d(1, std::sqrt(2.0), std::sqrt(3.0)).normalized();
+  // Positions to 1e-9 mm: the two copies of a vertex can differ in their last bits, and which
+  // copy gets which bits follows that order too.
+  const auto key = [&](int i) {
+    const Eigen::Vector3d& p = (*positions)[i];
+    return std::make_tuple(std::llround(p.x() * 1e9), std::llround(p.y() * 1e9),
+                           std::llround(p.z() * 1e9), ((*embed_at)[i] - p).dot(generic));
+  };
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return key(a) < key(b); });
+  std::vector<int> index(n);
+  std::iota(index.begin(), index.end(), 0);
+  std::vector<Eigen::Vector3d> p(*positions), e(*embed_at);
+  for (int k = 0; k < n - fixed; ++k) {
+    index[order[k]] = fixed + k;
+    p[fixed + k] = (*positions)[order[k]];
+    e[fixed + k] = (*embed_at)[order[k]];
+  }
+  *positions = std::move(p);
+  *embed_at = std::move(e);
+  for (std::array<int, 3>& f : *faces) {
+    for (int& v : f) v = index[v];
+    std::rotate(f.begin(), std::min_element(f.begin(), f.end()), f.end());
+  }
+  std::sort(faces->begin(), faces->end());
+}
+
 SplitStructure SplitOnce(const SurfaceMesh& structure, const SurfaceMesh& crack, double offset_mm) {
   SplitStructure out;
   out.surface.vertices = structure.vertices;
@@ -739,6 +780,7 @@ SplitStructure SplitOnce(const SurfaceMesh& structure, const SurfaceMesh& crack,
   }
 
   if (out.capped) MendCoincidences(positions, &faces);
+  NumberCanonically(n_structure, &positions, &embed_at, &faces);
   out.surface.vertices.resize(static_cast<Eigen::Index>(positions.size()), 3);
   out.embed_at_mm.resize(out.surface.vertices.rows(), 3);
   for (size_t i = 0; i < positions.size(); ++i) {
