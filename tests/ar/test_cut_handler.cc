@@ -185,7 +185,31 @@ TEST(CutHandler, SplitsTheModelForeseesTheRejectionOfKeepConnected) {
     EXPECT_EQ(handler.mesh().num_vertices(), mesh.num_vertices());
     const CutEvent ev = handler.Apply(0, l, l, eye, model.Targets());
     EXPECT_EQ(ev.status, c.splits ? "rejected" : "cut") << ev.message;
+    // Apply takes the cut SplitsTheModel planned: the same as a handler that was not asked.
+    Model fresh(mesh, c.height_mm);
+    CutHandler unasked(options, fresh.state);
+    const CutEvent same = unasked.Apply(0, l, l, eye, fresh.Targets());
+    EXPECT_EQ(same.status, ev.status);
+    EXPECT_EQ(same.depth_fraction, ev.depth_fraction);
+    EXPECT_EQ(same.new_vertices, ev.new_vertices);
+    EXPECT_EQ(same.new_tetrahedra, ev.new_tetrahedra);
+    EXPECT_TRUE(fresh.state.rest_positions() == model.state.rest_positions());
+    EXPECT_TRUE(fresh.state.tetrahedra() == model.state.tetrahedra());
   }
+  // A plan is taken only for the arguments it was made with: asked about a line ending inside
+  // the block, then applied with a line across it, the handler cuts the line across it.
+  const TetMesh block =
+      MakeBoxTetMesh(Eigen::Vector3d(40, 40, 20), Eigen::Vector3i(8, 8, 4), BoxTetSplit::kSix);
+  Model a(block), b(block);
+  CutHandler asked(CuttingStageOptions(), a.state), unasked(CuttingStageOptions(), b.state);
+  const std::vector<Eigen::Vector3d> partial = line(20, 20), across = line(20, 45);
+  EXPECT_FALSE(asked.SplitsTheModel(partial, partial, eye, a.state));
+  const CutEvent ea = asked.Apply(0, across, across, eye, a.Targets());
+  const CutEvent eb = unasked.Apply(0, across, across, eye, b.Targets());
+  ASSERT_EQ(ea.status, "cut");
+  EXPECT_EQ(ea.new_tetrahedra, eb.new_tetrahedra);
+  EXPECT_EQ(ea.depth_fraction, eb.depth_fraction);
+  EXPECT_TRUE(a.state.rest_positions() == b.state.rest_positions());
 }
 
 // A cut seen early: its first event's polyline ends 6 mm inside the block's outline on both

@@ -284,6 +284,22 @@ CutHandler::Plan CutHandler::PlanCut(const std::vector<Eigen::Vector3d>& polylin
   return plan;
 }
 
+struct CutHandler::Planned {
+  std::vector<Eigen::Vector3d> polyline_mm, rest_polyline_mm;
+  Eigen::Vector3d eye_mm;
+  RowMatX3d positions, rest_positions, velocities;  // of the state planned on
+  cutting::CuttableMesh after;                      // mesh_ with the plan's cut
+  Plan plan;
+
+  bool Matches(const std::vector<Eigen::Vector3d>& polyline,
+               const std::vector<Eigen::Vector3d>& rest, const Eigen::Vector3d& eye,
+               const mechanics::MechanicalState& state) const {
+    return polyline == polyline_mm && rest == rest_polyline_mm && eye == eye_mm &&
+           state.positions() == positions && state.rest_positions() == rest_positions &&
+           state.velocities() == velocities;
+  }
+};
+
 bool CutHandler::SplitsTheModel(const std::vector<Eigen::Vector3d>& polyline_mm,
                                 const std::vector<Eigen::Vector3d>& rest_polyline_mm,
                                 const Eigen::Vector3d& eye_mm,
@@ -292,11 +308,17 @@ bool CutHandler::SplitsTheModel(const std::vector<Eigen::Vector3d>& polyline_mm,
       mesh_->num_vertices() != state.num_vertices() ||
       mesh_->num_tetrahedra() != state.num_tetrahedra())
     return false;
+  planned_.reset();
   const cutting::CuttableMesh before = *mesh_;
   bool splits = false;
   try {
-    splits =
-        PlanCut(polyline_mm, rest_polyline_mm, eye_mm, state, FindPieces(before.RestMesh())).splits;
+    Plan plan =
+        PlanCut(polyline_mm, rest_polyline_mm, eye_mm, state, FindPieces(before.RestMesh()));
+    splits = plan.splits;
+    if (plan.cut.status == cutting::CutStatus::kCut)
+      planned_ = std::make_unique<Planned>(Planned{polyline_mm, rest_polyline_mm, eye_mm,
+                                                   state.positions(), state.rest_positions(),
+                                                   state.velocities(), *mesh_, std::move(plan)});
   } catch (const Error&) {
     // Apply reports the failure when the segment comes.
   }
@@ -329,8 +351,14 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
                       " vertices and ", state.num_tetrahedra(), " elements, the cut topology ",
                       mesh_->num_vertices(), " and ", mesh_->num_tetrahedra());
     const cutting::CuttableMesh before = *mesh_;
-    Plan plan =
-        PlanCut(polyline_mm, rest_polyline_mm, eye_mm, state, FindPieces(before.RestMesh()));
+    Plan plan;
+    if (planned_ && planned_->Matches(polyline_mm, rest_polyline_mm, eye_mm, state)) {
+      *mesh_ = std::move(planned_->after);  // SplitsTheModel's cut of these arguments
+      plan = std::move(planned_->plan);
+    } else {
+      plan = PlanCut(polyline_mm, rest_polyline_mm, eye_mm, state, FindPieces(before.RestMesh()));
+    }
+    planned_.reset();
     const SurfaceMesh& s = plan.s;
     const cutting::CutSummary& cut = plan.cut;
     const double depth = plan.depth;

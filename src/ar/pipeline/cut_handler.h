@@ -63,7 +63,9 @@ class CutHandler {
   // Whether Apply with these arguments would reject the event because S splits the model at
   // every depth tried, in every configuration (options.keep_connected); false when it would
   // cut, or reject or fail for another reason. Leaves the topology unchanged; the cost of one
-  // event's cut attempts (CutDetector::SetSegmentCheck asks before adding a segment).
+  // event's cut attempts (CutDetector::SetSegmentCheck asks before adding a segment). A cut it
+  // finds is kept for the next Apply, which takes it when called with the same arguments on the
+  // same state instead of planning the event again.
   bool SplitsTheModel(const std::vector<Eigen::Vector3d>& polyline_mm,
                       const std::vector<Eigen::Vector3d>& rest_polyline_mm,
                       const Eigen::Vector3d& eye_mm, const mechanics::MechanicalState& state);
@@ -101,6 +103,9 @@ class CutHandler {
   // Finds the event's cut: the configurations and depths tried, as documented in Apply. On
   // return mesh_ holds the cut when the plan's status is kCut, else it is as before.
   struct Plan;
+  // A plan SplitsTheModel found that cuts, with what it was planned from; reset by every Apply.
+  struct Planned;
+  std::unique_ptr<Planned> planned_;
   Plan PlanCut(const std::vector<Eigen::Vector3d>& polyline_mm,
                const std::vector<Eigen::Vector3d>& rest_polyline_mm, const Eigen::Vector3d& eye_mm,
                const mechanics::MechanicalState& state, const Pieces& pieces_before);
