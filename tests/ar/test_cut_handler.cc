@@ -212,6 +212,32 @@ TEST(CutHandler, SplitsTheModelForeseesTheRejectionOfKeepConnected) {
   EXPECT_TRUE(a.state.rest_positions() == b.state.rest_positions());
 }
 
+// An event whose S splits the model at every depth in the rest configuration is rejected, and
+// not cut in the current one instead: there only this frame's strip is cut, and where it meets
+// the earlier crack off its line (the model has moved since, and the detector's points with
+// it) the two stay sewn, so the model held together only by that seam. A slab one element
+// thick, cut from its left edge to the middle; the next event's polyline crosses the whole
+// slab, its new point 1.5 mm off the crack's line in this frame.
+TEST(CutHandler, ASplittingEventIsNotCutInTheCurrentConfigurationInstead) {
+  const TetMesh slab =
+      MakeBoxTetMesh(Eigen::Vector3d(40, 40, 4), Eigen::Vector3i(8, 8, 1), BoxTetSplit::kSix);
+  const double v0 = cutting::CheckMeshInvariants(slab).total_volume;
+  const Eigen::Vector3d eye(20, 20, 200);
+  Model model(slab, 4.0);
+  CutHandler handler(CuttingStageOptions(), model.state);
+  const std::vector<Eigen::Vector3d> first = {Eigen::Vector3d(-5, 20.3, 4),
+                                              Eigen::Vector3d(20, 20.3, 4)};
+  const CutEvent a = handler.Apply(0, first, first, eye, model.Targets());
+  ASSERT_EQ(a.status, "cut") << a.message;
+  std::vector<Eigen::Vector3d> rest = first, current = first;
+  rest.push_back(Eigen::Vector3d(45, 20.3, 4));
+  current.push_back(Eigen::Vector3d(45, 21.8, 4));
+  EXPECT_TRUE(handler.SplitsTheModel(current, rest, eye, model.state));
+  const CutEvent b = handler.Apply(1, current, rest, eye, model.Targets());
+  EXPECT_EQ(b.status, "rejected") << b.configuration;
+  EXPECT_EQ(CheckedPieces(model.state.RestMesh(), v0), 1);
+}
+
 // A cut seen early: its first event's polyline ends 6 mm inside the block's outline on both
 // sides, so the S that spans the block's depth along it keeps the block in one piece and was
 // applied whole. With foresight (CuttingStageOptions::foresight_mm, r_F in the pipeline) the
