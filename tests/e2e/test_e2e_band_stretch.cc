@@ -64,12 +64,13 @@ TEST(EndToEnd, BandStretchRegistersWithoutCuts) {
   EXPECT_EQ(dense_summary.cut_events, 0);
 }
 
-// Seed 24 (of the 16 band-stretch seeds at hand, 5 made events before session 18): the strain
-// concentrations at the stem's two re-entrant corners, which the coarse model cannot follow,
-// pass the detector's tests at one corner (frame 29) and then at the other (frame 36); joined,
-// they make a polyline across the stem whose cut keep_connected rejects at every depth. The
-// detector now asks before adding such a segment (cutting.refuse_splitting_segments): no event.
-// Without the rule the same run makes rejected events, so the seed still exercises it.
+// Seed 24 (of 41 band-stretch seeds, 15 made events before session 18, 13 of them only
+// rejected ones like these): the strain concentrations at the stem's two re-entrant corners,
+// which the coarse model cannot follow, pass the detector's tests at one corner (frame 29) and
+// then at the other (frame 36); joined, they make a polyline across the stem whose cut
+// keep_connected rejects at every depth. The detector now asks before adding such a segment
+// (cutting.refuse_splitting_segments): no event. Without the rule the same run makes rejected
+// events, so the seed still exercises it.
 TEST(EndToEnd, BandStretchStemCornersAreNotJoinedIntoACut) {
   const std::string dir = testing::ScratchDir("e2e_band_stretch_seed24");
   synth::SynthOptions so;

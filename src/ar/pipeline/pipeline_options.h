@@ -110,12 +110,12 @@ struct CuttingStageOptions {
   bool first_event_foresight = true;
   // With keep_connected, the detector is given the cut handler's verdict before it adds a
   // segment (cutting::CutDetector::SetSegmentCheck): a point whose segment would make an event
-  // that keep_connected rejects at every depth, in both configurations, is refused, as a point
-  // that is no growth of the polyline is. Otherwise the strain concentrations at the two
-  // re-entrant corners of a band's stem, 30 mm apart and within the growth radius of each
-  // other, were joined into a polyline across the stem on 5 of 16 band-stretch seeds: rejected
-  // events, but events of a scene without a cut (docs/detection.md, "Segments that would split
-  // the model"). false adds every segment the growth rules allow. Default true.
+  // that keep_connected rejects at every depth is refused, as a point that is no growth of the
+  // polyline is. Otherwise the strain concentrations at the two re-entrant corners of a band's
+  // stem, 30 mm apart and within the growth radius of each other, were joined into a polyline
+  // across the stem on 13 of 41 band-stretch seeds: rejected events, but events of a scene
+  // without a cut (docs/detection.md, "Segments that would split the model"). false adds every
+  // segment the growth rules allow. Default true.
   bool refuse_splitting_segments = true;
   // Where S is built and cut: "rest" (default) extrudes the polyline of the cut points' frame-0
   // positions along the frame-0 rays and cuts the rest configuration with the whole polyline
