@@ -363,8 +363,6 @@ SurfaceMesh CrackSurface(const TetMesh& rest) {
 
 namespace {
 
-// One try of SplitAlongCrack (below), without its final check: a capped result is only meant to
-// be used when it is a closed oriented manifold.
 // The corefinement numbers the vertices it adds in an order that follows addresses in memory:
 // the same split came out numbered differently from two builds. Renumbers the vertices from
 // `fixed` on (the input's keep their indices, which EmbedSplitStructure relies on) in the order
@@ -376,17 +374,19 @@ void NumberCanonically(int fixed, std::vector<Eigen::Vector3d>* positions,
                        std::vector<Eigen::Vector3d>* embed_at,
                        std::vector<std::array<int, 3>>* faces) {
   const int n = static_cast<int>(positions->size());
-  std::vector<int> order(n - fixed);
-  std::iota(order.begin(), order.end(), fixed);
   const Eigen::Vector3d generic = Eigen::Vector3d(1, std::sqrt(2.0), std::sqrt(3.0)).normalized();
   // Positions to 1e-9 mm: the two copies of a vertex can differ in their last bits, and which
   // copy gets which bits follows that order too.
-  const auto key = [&](int i) {
+  using Key = std::tuple<long long, long long, long long, double>;
+  std::vector<Key> key(n);
+  for (int i = fixed; i < n; ++i) {
     const Eigen::Vector3d& p = (*positions)[i];
-    return std::make_tuple(std::llround(p.x() * 1e9), std::llround(p.y() * 1e9),
-                           std::llround(p.z() * 1e9), ((*embed_at)[i] - p).dot(generic));
-  };
-  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return key(a) < key(b); });
+    key[i] = {std::llround(p.x() * 1e9), std::llround(p.y() * 1e9), std::llround(p.z() * 1e9),
+              ((*embed_at)[i] - p).dot(generic)};
+  }
+  std::vector<int> order(n - fixed);
+  std::iota(order.begin(), order.end(), fixed);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return key[a] < key[b]; });
   std::vector<int> index(n);
   std::iota(index.begin(), index.end(), 0);
   std::vector<Eigen::Vector3d> p(*positions), e(*embed_at);
@@ -404,6 +404,8 @@ void NumberCanonically(int fixed, std::vector<Eigen::Vector3d>* positions,
   std::sort(faces->begin(), faces->end());
 }
 
+// One try of SplitAlongCrack (below), without its final check: a capped result is only meant to
+// be used when it is a closed oriented manifold.
 SplitStructure SplitOnce(const SurfaceMesh& structure, const SurfaceMesh& crack, double offset_mm) {
   SplitStructure out;
   out.surface.vertices = structure.vertices;

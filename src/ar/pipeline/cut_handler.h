@@ -103,12 +103,12 @@ class CutHandler {
   // Finds the event's cut: the configurations and depths tried, as documented in Apply. On
   // return mesh_ holds the cut when the plan's status is kCut, else it is as before.
   struct Plan;
-  // A plan SplitsTheModel found that cuts, with what it was planned from; reset by every Apply.
-  struct Planned;
-  std::unique_ptr<Planned> planned_;
   Plan PlanCut(const std::vector<Eigen::Vector3d>& polyline_mm,
                const std::vector<Eigen::Vector3d>& rest_polyline_mm, const Eigen::Vector3d& eye_mm,
                const mechanics::MechanicalState& state, const Pieces& pieces_before);
+  // A plan SplitsTheModel found that cuts, with what it was planned from; reset by every Apply.
+  struct Planned;
+  std::unique_ptr<Planned> planned_;
   // Welds every debris piece of the state, given its pieces and rest mesh (see FollowWelds);
   // returns how many vertices were welded by this call beyond those welded before.
   int WeldDebris(const Pieces& pieces, const TetMesh& rest, mechanics::MechanicalState* state);
