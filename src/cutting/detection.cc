@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <iterator>
 #include <string>
 #include <utility>
 
@@ -270,6 +271,7 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   result->pairs_removed_by_cut = 0;
   result->lone_features = 0;
   result->one_sided_clusters = 0;
+  result->star_starts = 0;
   result->refused_points = 0;
   result->refused_segments = 0;
   result->pairs_removed_by_death = 0;
@@ -343,12 +345,13 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   // of the frame is the larger of the two passes', so that a cluster is counted once.
   const bool starting = polyline_.empty();
   int* const rejections[] = {&result->lone_features, &result->one_sided_clusters,
-                             &result->refused_points};
-  std::array<int, 3> first_pass{};
+                             &result->star_starts, &result->refused_points};
+  constexpr int kRejections = static_cast<int>(std::size(rejections));
+  std::array<int, kRejections> first_pass{};
   for (int pass = 0; pass < (starting ? 2 : 1) && result->new_cut_points.empty(); ++pass) {
     const bool bridge_pass = pass == 1;
     if (bridge_pass)
-      for (int c = 0; c < 3; ++c) first_pass[c] = std::exchange(*rejections[c], 0);
+      for (int c = 0; c < kRejections; ++c) first_pass[c] = std::exchange(*rejections[c], 0);
     candidates_ = result->outliers;
     if (starting && !bridge_pass)
       candidates_.erase(std::remove_if(candidates_.begin(), candidates_.end(),
@@ -356,7 +359,8 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
                         candidates_.end());
     InsertCutPoints(bridge_pass, result);
     if (bridge_pass)
-      for (int c = 0; c < 3; ++c) *rejections[c] = std::max(*rejections[c], first_pass[c]);
+      for (int c = 0; c < kRejections; ++c)
+        *rejections[c] = std::max(*rejections[c], first_pass[c]);
   }
 
   // The growth probe, when C^t inserted nothing: the back extremity first, then the front.
@@ -447,6 +451,17 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
         ++result->one_sided_clusters;
         DropClusterFromCandidates();
         continue;
+      }
+      if (options_.cluster_outliers && options_.reject_star_starts && !grows) {
+        int most = 0;
+        if (StarHub(
+                static_cast<int>(cluster_.size()),
+                [&](int i) -> const FeaturePair& { return result->pairs[cluster_[i]]; },
+                &most) >= 0) {
+          ++result->star_starts;
+          DropClusterFromCandidates();
+          continue;
+        }
       }
       placement = PlaceCutPoint(point, *result);
       if (placement == Placement::kRefuse) {
@@ -786,18 +801,26 @@ bool CutDetector::Opens(const FeaturePair& p) const {
 }
 
 template <typename PairOf>
-int CutDetector::LoneFeature(int num_pairs, const PairOf& pair_of) {
+int CutDetector::StarHub(int num_pairs, const PairOf& pair_of, int* most) {
+  *most = 0;
   if (num_pairs < 2) return -1;
-  int lone = -1, most = 0;
+  int hub = -1;
   for (int i = 0; i < num_pairs; ++i)
     for (int f : {pair_of(i).first, pair_of(i).second})
-      if (++cluster_count_[f] > most) {
-        most = cluster_count_[f];
-        lone = f;
+      if (++cluster_count_[f] > *most) {
+        *most = cluster_count_[f];
+        hub = f;
       }
   for (int i = 0; i < num_pairs; ++i)
     cluster_count_[pair_of(i).first] = cluster_count_[pair_of(i).second] = 0;
-  if (4 * most <= 3 * num_pairs) return -1;
+  return 4 * *most > 3 * num_pairs ? hub : -1;
+}
+
+template <typename PairOf>
+int CutDetector::LoneFeature(int num_pairs, const PairOf& pair_of) {
+  int most = 0;
+  const int lone = StarHub(num_pairs, pair_of, &most);
+  if (lone < 0) return -1;
   // The hub's own displacement error explains its pairs when its partners' are small (across
   // a cut, the features on the other side are as far from their model points).
   const auto error_mm = [&](int f) { return (model_mm_.row(f) - target_mm_.row(f)).norm(); };

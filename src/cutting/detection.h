@@ -111,6 +111,13 @@ struct CutDetectorOptions {
   // applies to a single feature (partners less than half as far off), extended to several features
   // on the same side. Not in the thesis; only with cluster_outliers; 0 disables. Default 0.5.
   double min_opening_balance = 0.5;
+  // A cluster that would start a polyline and in which one feature is an endpoint of more than
+  // 3/4 of the pairs (a star) is no separation: whatever its partners do, one feature's
+  // disagreement with its neighbours is explained by that feature (its track, or a strain
+  // concentration the model cannot follow) as well as by a cut, which shows two or more features
+  // on each side. Its pairs leave the candidates of this frame. Not in the thesis; only with
+  // cluster_outliers; false lets stars start. Default true.
+  bool reject_star_starts = true;
   // The polyline grows only at its extremities (thesis 7.5.3): a cut point farther than
   // r_pc + 1.5 r_F (frame-0 coordinates) from both extremities is no growth of it. The next
   // point of a growing cut comes from pairs across the cut just outside the r_pc sphere around
@@ -241,6 +248,7 @@ struct DetectionResult {
   // Clusters rejected this frame as one feature's star (reject_lone_features).
   int lone_features = 0;
   int one_sided_clusters = 0;  // clusters rejected this frame by min_opening_balance
+  int star_starts = 0;         // clusters rejected this frame by reject_star_starts
   int refused_points = 0;      // cut points refused this frame as no growth of the polyline
   // (or with too few pairs to start one). Each of these three counts a cluster once: a frame
   // without a polyline makes a second pass, with bridges, and reports the larger count.
@@ -367,6 +375,10 @@ class CutDetector {
   // model points as it does; -1 if none (see CutDetectorOptions::reject_lone_features).
   template <typename PairOf>
   int LoneFeature(int num_pairs, const PairOf& pair_of);
+  // The feature in more than 3/4 of the pairs pair_of(0 .. num_pairs - 1), or -1; *most is the
+  // largest number of those pairs any one feature is in.
+  template <typename PairOf>
+  int StarHub(int num_pairs, const PairOf& pair_of, int* most);
   // Sum over `outliers` (indices into result.pairs) of min(mu / threshold, outlier_weight_cap).
   double OutlierCount(const std::vector<int>& outliers, const DetectionResult& result) const;
   // The pair's targets are farther apart than its model points (delta^1 > delta^t).

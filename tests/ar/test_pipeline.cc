@@ -357,6 +357,12 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_FALSE(ReadPipelineOptions(scene).cutting.refuse_splitting_segments);
   scene.cutting = {{"refuse_splitting_segments", "yes"}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  // Session 19: a star does not start a polyline.
+  EXPECT_TRUE(o.cutting.detector.reject_star_starts);
+  scene.cutting = {{"reject_star_starts", false}};
+  EXPECT_FALSE(ReadPipelineOptions(scene).cutting.detector.reject_star_starts);
+  scene.cutting = {{"reject_star_starts", 1}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
   // Session 7: where S is cut.
   EXPECT_EQ(o.cutting.cut_configuration, "rest");
   scene.cutting = {{"cut_configuration", "current"}};

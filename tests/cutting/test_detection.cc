@@ -757,17 +757,20 @@ TEST(CutDetector, OnlyOpeningPairsAreOutliers) {
 TEST(CutDetector, SlidingFeatureGivesNoCut) {
   const FeatureGrid g = MakeGrid();
   const int sliding = 10 * 35 + 17;  // mid-grid
-  for (int variant = 0; variant < 3; ++variant) {
+  // Variants: the lone-feature test alone; none of the three; the balance test alone; the star
+  // test alone (the slider's star would start a polyline).
+  for (int variant = 0; variant < 4; ++variant) {
     const bool reject = variant != 1;
     CutDetectorOptions o;
     o.reject_lone_features = variant == 0;
     o.min_opening_balance = variant == 2 ? 0.5 : 0.0;
+    o.reject_star_starts = variant == 3;
     CutDetector detector(o);
     detector.Initialize(g.p0, g.ids);
     std::mt19937 rng(8);
     std::normal_distribution<double> noise(0.0, 0.25);
     DetectionResult r;
-    int cut_points = 0, lone = 0, one_sided = 0;
+    int cut_points = 0, lone = 0, one_sided = 0, stars = 0;
     for (int k = 1; k <= 40; ++k) {
       RowMatX3d target = g.p0;
       for (int i = 0; i < target.rows(); ++i) {
@@ -779,15 +782,88 @@ TEST(CutDetector, SlidingFeatureGivesNoCut) {
       cut_points += static_cast<int>(r.new_cut_points.size());
       lone += r.lone_features;
       one_sided += r.one_sided_clusters;
+      stars += r.star_starts;
     }
     SCOPED_TRACE("variant " + std::to_string(variant));
     if (reject) {
       EXPECT_EQ(cut_points, 0);
-      EXPECT_GT(variant == 0 ? lone : one_sided, 0);
+      EXPECT_GT(variant == 0 ? lone : variant == 2 ? one_sided : stars, 0);
     } else {
       EXPECT_GE(cut_points, 1);
       EXPECT_EQ(lone, 0);
     }
+  }
+}
+
+// The upper half of the grid rises from the lower one at the seam y = 0, the model spanning the
+// gap (both halves' targets lie outward of their model points, as across a cut), but the three
+// rows above the seam carry one feature only: its pairs to the features below are the only ones
+// across, a star. Its partners are as far from their model points as it is and both sides open,
+// so neither reject_lone_features nor the start's balance test rejects it, and without
+// reject_star_starts the star starts a polyline. With it, no point: one feature's disagreement
+// with its neighbours is what a strain concentration at the model's coarse corner also shows
+// (band-stretch seed 38), and a cut shows two features on each side before it is cut. A seam
+// pulled apart along the full grid is still found along its length.
+TEST(CutDetector, StarDoesNotStartAPolyline) {
+  const FeatureGrid full = MakeGrid();
+  FeatureGrid g;
+  g.p0.resize(full.p0.rows(), 3);
+  int hub = -1, n = 0;
+  for (int r = 0; r < full.p0.rows(); ++r) {
+    const double x = full.p0(r, 0), y = full.p0(r, 1);
+    const bool is_hub = std::abs(y - 7.2) < 1e-9 && std::abs(x - 4.8 * 17.5) < 1e-9;
+    if (y > 0.0 && y < 15.0 && !is_hub) continue;
+    if (is_hub) hub = n;
+    g.p0.row(n++) = full.p0.row(r);
+    g.ids.push_back(full.ids[r]);
+  }
+  g.p0.conservativeResize(n, 3);
+  ASSERT_GE(hub, 0);
+  for (const bool reject : {false, true}) {
+    SCOPED_TRACE(reject ? "reject_star_starts" : "stars start");
+    CutDetectorOptions o;
+    o.reject_star_starts = reject;
+    CutDetector detector(o);
+    detector.Initialize(g.p0, g.ids);
+    std::mt19937 rng(5);
+    std::normal_distribution<double> noise(0.0, 0.25);
+    DetectionResult r;
+    int cut_points = 0, stars = 0, other_rejections = 0, other_outliers = 0;
+    for (int k = 1; k <= 30; ++k) {
+      const double rise = 0.3 * k;
+      RowMatX3d target = g.p0, model = g.p0;
+      for (int i = 0; i < n; ++i) {
+        if (g.p0(i, 1) > 0.0)
+          target(i, 1) += rise;
+        else
+          model(i, 1) += rise;
+        target(i, 0) += noise(rng);
+        target(i, 1) += noise(rng);
+      }
+      detector.Update(MakeFrame(g, target, model), &r);
+      cut_points += static_cast<int>(r.new_cut_points.size());
+      stars += r.star_starts;
+      other_rejections += r.lone_features + r.one_sided_clusters;
+      for (int out : r.outliers)
+        other_outliers += r.pairs[out].first != hub && r.pairs[out].second != hub;
+    }
+    EXPECT_EQ(other_outliers, 0);
+    EXPECT_EQ(other_rejections, 0);
+    if (reject) {
+      EXPECT_EQ(cut_points, 0);
+      EXPECT_GT(stars, 0);
+    } else {
+      EXPECT_GE(cut_points, 1);
+      EXPECT_EQ(stars, 0);
+    }
+  }
+  for (unsigned seed : {1u, 2u, 3u}) {
+    SCOPED_TRACE("seam, seed " + std::to_string(seed));
+    SeamScenario scenario;
+    scenario.seed = seed;
+    const SeamRun run = RunSeam(full, scenario, CutDetectorOptions());
+    ASSERT_GE(run.points.size(), 8u);
+    ExpectPointsFollowTheSeam(scenario, run, 0);
   }
 }
 

@@ -238,6 +238,7 @@ nlohmann::json MakeFrameRecord(const pipeline::FrameState& frame, const PinholeC
                  {"probe_outliers", d.probe_outliers},
                  {"lone_features", d.lone_features},
                  {"one_sided_clusters", d.one_sided_clusters},
+                 {"star_starts", d.star_starts},
                  {"refused_points", d.refused_points},
                  {"refused_segments", d.refused_segments},
                  {"new_cut_points", std::move(new_points)},
