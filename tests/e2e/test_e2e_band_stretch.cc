@@ -64,6 +64,21 @@ TEST(EndToEnd, BandStretchRegistersWithoutCuts) {
   EXPECT_EQ(dense_summary.cut_events, 0);
 }
 
+// The band-stretch scene of `seed`, generated under a scratch directory of its own.
+Scene BandStretchScene(int seed) {
+  const std::string dir = testing::ScratchDir("e2e_band_stretch_seed" + std::to_string(seed));
+  synth::SynthOptions so;
+  so.scenario = "band-stretch";
+  so.seed = seed;
+  so.out_dir = dir + "/scene";
+  synth::GenerateSyntheticScene(so);
+  return ReadScene(dir + "/scene/scene.json");
+}
+
+pipeline::RunSummary RunScene(const Scene& scene, const pipeline::PipelineOptions& options) {
+  return pipeline::RegistrationPipeline(scene, options).Run(pipeline::RunOptions());
+}
+
 // Seed 24 (of 41 band-stretch seeds, 15 made events before session 18, 13 of them only
 // rejected ones like these): the strain concentrations at the stem's two re-entrant corners,
 // which the coarse model cannot follow, pass the detector's tests at one corner (frame 29) and
@@ -72,22 +87,14 @@ TEST(EndToEnd, BandStretchRegistersWithoutCuts) {
 // (cutting.refuse_splitting_segments): no event. Without the rule the same run makes rejected
 // events, so the seed still exercises it.
 TEST(EndToEnd, BandStretchStemCornersAreNotJoinedIntoACut) {
-  const std::string dir = testing::ScratchDir("e2e_band_stretch_seed24");
-  synth::SynthOptions so;
-  so.scenario = "band-stretch";
-  so.seed = 24;
-  so.out_dir = dir + "/scene";
-  synth::GenerateSyntheticScene(so);
-  const Scene scene = ReadScene(dir + "/scene/scene.json");
+  const Scene scene = BandStretchScene(24);
   pipeline::PipelineOptions options = pipeline::ReadPipelineOptions(scene);
   ASSERT_TRUE(options.cutting.refuse_splitting_segments);
-  const pipeline::RunSummary summary =
-      pipeline::RegistrationPipeline(scene, options).Run(pipeline::RunOptions());
+  const pipeline::RunSummary summary = RunScene(scene, options);
   EXPECT_EQ(summary.cut_events, 0);
   EXPECT_EQ(summary.cuts_applied, 0);
   options.cutting.refuse_splitting_segments = false;
-  const pipeline::RunSummary without =
-      pipeline::RegistrationPipeline(scene, options).Run(pipeline::RunOptions());
+  const pipeline::RunSummary without = RunScene(scene, options);
   std::printf("band-stretch seed 24: %d cut events, %d without refuse_splitting_segments\n",
               summary.cut_events, without.cut_events);
   EXPECT_GT(without.cut_events, 0);
@@ -101,21 +108,13 @@ TEST(EndToEnd, BandStretchStemCornersAreNotJoinedIntoACut) {
 // starts a polyline that grows at frame 39 from another band feature's star, and the event cuts
 // into the junction. A star no longer starts a polyline (cutting.reject_star_starts): no event.
 TEST(EndToEnd, BandStretchStarAtTheStemCornerStartsNoCut) {
-  const std::string dir = testing::ScratchDir("e2e_band_stretch_seed38");
-  synth::SynthOptions so;
-  so.scenario = "band-stretch";
-  so.seed = 38;
-  so.out_dir = dir + "/scene";
-  synth::GenerateSyntheticScene(so);
-  const Scene scene = ReadScene(dir + "/scene/scene.json");
+  const Scene scene = BandStretchScene(38);
   pipeline::PipelineOptions options = pipeline::ReadPipelineOptions(scene);
   ASSERT_TRUE(options.cutting.detector.reject_star_starts);
-  const pipeline::RunSummary summary =
-      pipeline::RegistrationPipeline(scene, options).Run(pipeline::RunOptions());
+  const pipeline::RunSummary summary = RunScene(scene, options);
   EXPECT_EQ(summary.cut_events, 0);
   options.cutting.detector.reject_star_starts = false;
-  const pipeline::RunSummary without =
-      pipeline::RegistrationPipeline(scene, options).Run(pipeline::RunOptions());
+  const pipeline::RunSummary without = RunScene(scene, options);
   std::printf("band-stretch seed 38: %d cut events, %d without reject_star_starts\n",
               summary.cut_events, without.cut_events);
   EXPECT_GT(without.cut_events, 0);
