@@ -505,12 +505,11 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
 double CutDetector::Measure(int l, int m) const {
   Eigen::Vector3d misfit, span;
   PairDifferences(l, m, &misfit, &span);
-  const double mu1 = misfit.norm();
-  const double delta0 = (initial_mm_.row(l) - initial_mm_.row(m)).norm();
-  const double delta = span.norm();
+  // mu1 * delta / delta0 under one square root (the measure of every pair, every frame).
+  const double delta0_2 = (initial_mm_.row(l) - initial_mm_.row(m)).squaredNorm();
   // Coincident initial features carry no length information; treat them as unstretched.
-  const double mu2 = delta0 > 0.0 ? delta / delta0 : 1.0;
-  return mu1 * mu2;
+  if (delta0_2 == 0.0) return misfit.norm();
+  return std::sqrt(misfit.squaredNorm() * span.squaredNorm() / delta0_2);
 }
 
 void CutDetector::CommitCutPoint(const CutPoint& point, Placement placement,
