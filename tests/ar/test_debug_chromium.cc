@@ -95,6 +95,13 @@ TEST(DebugViewerInBrowser, StepsFramesTogglesLayersAndShowsAFeatureHistory) {
   EXPECT_EQ(r["label_before"], "0");
   EXPECT_EQ(r["shown_after"], 3);
   EXPECT_EQ(r["label_after"], "3");
+  // Frame 3's rejected clusters as the record counts them.
+  const nlohmann::json& det = rec["detection"];
+  std::string rejected;
+  for (const char* key :
+       {"lone_features", "one_sided_clusters", "star_starts", "refused_points", "refused_segments"})
+    rejected += (rejected.empty() ? "" : " / ") + std::to_string(det[key].get<int>());
+  EXPECT_EQ(r["rejected_row"], rejected);
   for (const char* layer : {"pairs", "mesh"}) {
     ASSERT_TRUE(r["toggles"].contains(layer)) << layer;
     EXPECT_NE(r["toggles"][layer][0], r["toggles"][layer][1]) << layer;

@@ -91,6 +91,11 @@ def main():
                      "frame " + target + " drawn")
             result["shown_after"] = int(script("return document.getElementById('view').dataset.frame;"))
             result["label_after"] = script("return document.getElementById('frame-index').textContent;")
+            # The numbers panel's row of this frame's rejected clusters (five counts).
+            result["rejected_row"] = script(
+                "const r = [...document.querySelectorAll('#numbers tr')].find("
+                "(tr) => tr.cells[0].textContent.startsWith('clusters rejected'));"
+                "return r ? r.cells[1].textContent : '';")
             toggles = {}
             for name in ("pairs", "mesh"):
                 before = script("return document.getElementById('layer-%s').checked;" % name)

@@ -72,9 +72,10 @@ void Text(cv::Mat* img, const std::string& s, int row) {
               cv::LINE_AA);
 }
 
-std::string Format(const char* fmt, double a, double b = 0, double c = 0) {
+template <typename... Numbers>
+std::string Format(const char* fmt, Numbers... numbers) {
   char buf[160];
-  std::snprintf(buf, sizeof(buf), fmt, a, b, c);
+  std::snprintf(buf, sizeof(buf), fmt, static_cast<double>(numbers)...);
   return buf;
 }
 
@@ -227,12 +228,20 @@ void DrawDebugLayers(const nlohmann::json& record, const nlohmann::json& topolog
                 stats.at("features_alive").get<double>(), stats.at("lost").get<double>(),
                 stats.at("spring_length_mean_mm").get<double>()),
          row++);
-    if (det.is_object())
+    if (det.is_object()) {
       Text(&img,
            Format("pairs %.0f  outliers %.0f  mean mu %.4f mm",
                   static_cast<double>(det.at("pairs").size()), det.at("outliers").get<double>(),
                   det.at("mean_mu").get<double>()),
            row++);
+      // Clusters rejected this frame (records of older runs lack some counters: 0).
+      const auto count = [&](const char* key) { return det.value(key, 0.0); };
+      Text(&img,
+           Format("rejected: sliding %.0f  one-sided %.0f  star %.0f  no growth %.0f  split %.0f",
+                  count("lone_features"), count("one_sided_clusters"), count("star_starts"),
+                  count("refused_points"), count("refused_segments")),
+           row++);
+    }
     Text(&img, Format("total %.1f ms", record.at("ms").at("total").get<double>()), row++);
   }
 }
