@@ -452,16 +452,12 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
         DropClusterFromCandidates();
         continue;
       }
-      if (options_.cluster_outliers && options_.reject_star_starts && !grows) {
-        int most = 0;
-        if (StarHub(
-                static_cast<int>(cluster_.size()),
-                [&](int i) -> const FeaturePair& { return result->pairs[cluster_[i]]; },
-                &most) >= 0) {
-          ++result->star_starts;
-          DropClusterFromCandidates();
-          continue;
-        }
+      if (options_.cluster_outliers && options_.reject_star_starts && !grows &&
+          StarHub(static_cast<int>(cluster_.size()),
+                  [&](int i) -> const FeaturePair& { return result->pairs[cluster_[i]]; }) >= 0) {
+        ++result->star_starts;
+        DropClusterFromCandidates();
+        continue;
       }
       placement = PlaceCutPoint(point, *result);
       if (placement == Placement::kRefuse) {
@@ -800,19 +796,19 @@ bool CutDetector::Opens(const FeaturePair& p) const {
 }
 
 template <typename PairOf>
-int CutDetector::StarHub(int num_pairs, const PairOf& pair_of, int* most) {
-  *most = 0;
+int CutDetector::StarHub(int num_pairs, const PairOf& pair_of, int* most_out) {
   if (num_pairs < 2) return -1;
-  int hub = -1;
+  int hub = -1, most = 0;
   for (int i = 0; i < num_pairs; ++i)
     for (int f : {pair_of(i).first, pair_of(i).second})
-      if (++cluster_count_[f] > *most) {
-        *most = cluster_count_[f];
+      if (++cluster_count_[f] > most) {
+        most = cluster_count_[f];
         hub = f;
       }
   for (int i = 0; i < num_pairs; ++i)
     cluster_count_[pair_of(i).first] = cluster_count_[pair_of(i).second] = 0;
-  return 4 * *most > 3 * num_pairs ? hub : -1;
+  if (most_out) *most_out = most;
+  return 4 * most > 3 * num_pairs ? hub : -1;
 }
 
 template <typename PairOf>

@@ -375,10 +375,10 @@ class CutDetector {
   // model points as it does; -1 if none (see CutDetectorOptions::reject_lone_features).
   template <typename PairOf>
   int LoneFeature(int num_pairs, const PairOf& pair_of);
-  // The feature in more than 3/4 of the pairs pair_of(0 .. num_pairs - 1), or -1; *most is the
-  // largest number of those pairs any one feature is in.
+  // The feature in more than 3/4 of the pairs pair_of(0 .. num_pairs - 1), or -1; *most (when
+  // given, and num_pairs >= 2) receives the largest number of those pairs any one feature is in.
   template <typename PairOf>
-  int StarHub(int num_pairs, const PairOf& pair_of, int* most);
+  int StarHub(int num_pairs, const PairOf& pair_of, int* most = nullptr);
   // Sum over `outliers` (indices into result.pairs) of min(mu / threshold, outlier_weight_cap).
   double OutlierCount(const std::vector<int>& outliers, const DetectionResult& result) const;
   // The pair's targets are farther apart than its model points (delta^1 > delta^t).
