@@ -312,23 +312,11 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   const int num_pairs = static_cast<int>(pairs_.size());
   result->pairs.assign(pairs_.begin(), pairs_.end());
   result->measure.resize(num_pairs);
-  // mu-bar is taken over the pairs of C_F (bridges are up to 2 r_F long and would shift the
-  // threshold the thesis's tau refers to); over the bridges if no pair of C_F is left.
-  double sum = 0.0, bridge_sum = 0.0;
-  int bridges = 0;
-  for (int k = 0; k < num_pairs; ++k) {
-    const double mu = Measure(pairs_[k].first, pairs_[k].second);
-    result->measure[k] = mu;
-    if (pairs_[k].bridge) {
-      bridge_sum += mu;
-      ++bridges;
-    } else {
-      sum += mu;
-    }
-  }
-  const int of_cf = num_pairs - bridges;
-  const double mean = of_cf > 0 ? sum / of_cf : (bridges > 0 ? bridge_sum / bridges : 0.0);
+  for (int k = 0; k < num_pairs; ++k)
+    result->measure[k] = Measure(pairs_[k].first, pairs_[k].second);
+  const double mean = MeanOverCf(pairs_, result->measure);
   result->mean_measure = mean;
+  model_threshold_ = -1.0;  // the model-regularised measure is computed when a start asks
   threshold_ = std::max(options_.outlier_factor * mean, options_.min_outlier_measure_mm);
   for (int k = 0; k < num_pairs; ++k) {
     if (result->measure[k] <= threshold_) continue;
@@ -345,7 +333,8 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   // of the frame is the larger of the two passes', so that a cluster is counted once.
   const bool starting = polyline_.empty();
   int* const rejections[] = {&result->lone_features, &result->one_sided_clusters,
-                             &result->star_starts, &result->refused_points};
+                             &result->star_starts, &result->unconfirmed_starts,
+                             &result->refused_points};
   constexpr int kRejections = static_cast<int>(std::size(rejections));
   std::array<int, kRejections> first_pass{};
   for (int pass = 0; pass < (starting ? 2 : 1) && result->new_cut_points.empty(); ++pass) {
@@ -446,6 +435,13 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
           continue;
         }
       }
+      if (options_.confirm_starts_with_model_measure &&
+          options_.measure == CutMeasure::kImageOnly && !grows &&
+          !ConfirmedByModelMeasure(point.position_mm, *result)) {
+        ++result->unconfirmed_starts;
+        DropClusterFromCandidates();
+        continue;
+      }
       if (options_.cluster_outliers && options_.min_opening_balance > 0.0 && !grows &&
           OpeningBalance(*result) < options_.min_opening_balance) {
         ++result->one_sided_clusters;
@@ -496,6 +492,54 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
                        }),
         candidates_.end());
   }
+}
+
+double CutDetector::MeanOverCf(const std::vector<FeaturePair>& pairs,
+                               const std::vector<double>& values) {
+  double sum = 0.0, bridge_sum = 0.0;
+  int bridges = 0;
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    if (pairs[k].bridge) {
+      bridge_sum += values[k];
+      ++bridges;
+    } else {
+      sum += values[k];
+    }
+  }
+  const int of_cf = static_cast<int>(pairs.size()) - bridges;
+  return of_cf > 0 ? sum / of_cf : (bridges > 0 ? bridge_sum / bridges : 0.0);
+}
+
+bool CutDetector::ConfirmedByModelMeasure(const Eigen::Vector3d& point_mm,
+                                          const DetectionResult& result) {
+  const std::vector<FeaturePair>& pairs = result.pairs;
+  if (model_threshold_ < 0.0) {
+    model_measure_.resize(pairs.size());
+    for (size_t k = 0; k < pairs.size(); ++k) {
+      const int l = pairs[k].first, m = pairs[k].second;
+      const Eigen::Vector3d misfit =
+          ((model_mm_.row(l) - target_mm_.row(l)) - (model_mm_.row(m) - target_mm_.row(m)))
+              .transpose();
+      const double delta0_2 = (initial_mm_.row(l) - initial_mm_.row(m)).squaredNorm();
+      const double deltat_2 = (model_mm_.row(l) - model_mm_.row(m)).squaredNorm();
+      model_measure_[k] =
+          delta0_2 == 0.0 ? misfit.norm() : std::sqrt(misfit.squaredNorm() * deltat_2 / delta0_2);
+    }
+    model_threshold_ = std::max(options_.outlier_factor * MeanOverCf(pairs, model_measure_),
+                                options_.min_outlier_measure_mm);
+  }
+  const double r2 = options_.neighbour_radius_mm * options_.neighbour_radius_mm;
+  double count = 0.0;
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    if (model_measure_[k] <= model_threshold_) continue;
+    const FeaturePair& p = pairs[k];
+    if (options_.require_opening && !Opens(p)) continue;
+    const Eigen::Vector3d mid =
+        0.5 * (model_mm_.row(p.first) + model_mm_.row(p.second)).transpose();
+    if ((mid - point_mm).squaredNorm() > r2) continue;
+    count += std::min(model_measure_[k] / model_threshold_, options_.outlier_weight_cap);
+  }
+  return count >= options_.min_outliers;
 }
 
 double CutDetector::Measure(int l, int m) const {

@@ -118,6 +118,19 @@ struct CutDetectorOptions {
   // on each side. Its pairs leave the candidates of this frame. Not in the thesis; only with
   // cluster_outliers; false lets stars start. Default true.
   bool reject_star_starts = true;
+  // Conservative starts (not in the thesis; opt-in): a point that would start a polyline must
+  // be found by both variants of mu2 (eq. 7.10). With the image-only measure (the default
+  // `measure`), the pairs of the frame within r_F of the point must also reach n as outliers of
+  // the model-regularised one (mu2 = delta^t / delta^0, the variant of the thesis's band
+  // examples; its own mean over C_F, the same tau, floor, weights and opening test). Growth is
+  // not asked for it: the image-only measure keeps following a tear whose lips the tracker
+  // loses (with the model-regularised measure alone, band-cut-v seed 11 was never cut).
+  // Measured (docs/detection.md "Conservative starts"): on 81 band-stretch seeds it leaves 2
+  // of the 6 false cut events (with twice the features 18 of 32), but it delays the start of
+  // real cuts by up to 26 frames and no longer starts the weak middle slit of band-precut-middle
+  // (cut on 5 of 13 seeds without it, 0 with it), so it is off by default. Ignored with
+  // measure kModelRegularised. Default false.
+  bool confirm_starts_with_model_measure = false;
   // The polyline grows only at its extremities (thesis 7.5.3): a cut point farther than
   // r_pc + 1.5 r_F (frame-0 coordinates) from both extremities is no growth of it. The next
   // point of a growing cut comes from pairs across the cut just outside the r_pc sphere around
@@ -249,8 +262,11 @@ struct DetectionResult {
   int lone_features = 0;
   int one_sided_clusters = 0;  // clusters rejected this frame by min_opening_balance
   int star_starts = 0;         // clusters rejected this frame by reject_star_starts
-  int refused_points = 0;      // cut points refused this frame as no growth of the polyline
-  // (or with too few pairs to start one). Each of these three counts a cluster once: a frame
+  // Clusters whose start the model-regularised measure did not confirm
+  // (confirm_starts_with_model_measure).
+  int unconfirmed_starts = 0;
+  int refused_points = 0;  // cut points refused this frame as no growth of the polyline
+  // (or with too few pairs to start one). Each of these counts a cluster once: a frame
   // without a polyline makes a second pass, with bridges, and reports the larger count.
   // Points refused this frame by the segment check (CutDetector::SetSegmentCheck): the segment
   // they would add makes a cut the caller cannot apply.
@@ -354,6 +370,14 @@ class CutDetector {
   }
   // mu of the pair (l, m) from this frame's positions (eq. 7.9-7.11).
   double Measure(int l, int m) const;
+  // The mean of per-pair values over the pairs of C_F, or over the bridges when no pair of C_F
+  // is left (bridges are up to 2 r_F long and would shift the threshold tau refers to).
+  static double MeanOverCf(const std::vector<FeaturePair>& pairs,
+                           const std::vector<double>& values);
+  // Whether the pairs of this frame within r_F of the point (current midpoints) reach n as
+  // outliers of the model-regularised measure (confirm_starts_with_model_measure). Computes
+  // that measure for the frame on its first call.
+  bool ConfirmedByModelMeasure(const Eigen::Vector3d& point_mm, const DetectionResult& result);
   // Inserts up to max_cut_points_per_frame points from candidates_ (clusters, their tests, the
   // polyline's growth rule, pair removal). In the bridges' pass (see bridge_radius_factor) a
   // point that would start a polyline needs n pairs counted one each, else n among its pairs
@@ -426,6 +450,10 @@ class CutDetector {
   std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> refused_segments_;
   int frame_ = 0;
   double threshold_ = 0.0;  // this frame's outlier threshold max(tau * mean(mu), floor) [mm]
+  // The model-regularised mu of this frame's pairs and its threshold, for the start
+  // confirmation; the threshold is negative until computed in the frame.
+  std::vector<double> model_measure_;
+  double model_threshold_ = -1.0;
   // Per-frame scratch, indexed by feature.
   std::vector<int> row_of_feature_;
   RowMatX3d model_mm_;   // (#F x 3) p^t of the alive features

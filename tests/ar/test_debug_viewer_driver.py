@@ -91,7 +91,7 @@ def main():
                      "frame " + target + " drawn")
             result["shown_after"] = int(script("return document.getElementById('view').dataset.frame;"))
             result["label_after"] = script("return document.getElementById('frame-index').textContent;")
-            # The numbers panel's row of this frame's rejected clusters (five counts).
+            # The numbers panel's row of this frame's rejected clusters (six counts).
             result["rejected_row"] = script(
                 "const r = [...document.querySelectorAll('#numbers tr')].find("
                 "(tr) => tr.cells[0].textContent.startsWith('clusters rejected'));"

@@ -363,6 +363,12 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_FALSE(ReadPipelineOptions(scene).cutting.detector.reject_star_starts);
   scene.cutting = {{"reject_star_starts", 1}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  // Session 20: conservative starts, opt-in.
+  EXPECT_FALSE(o.cutting.detector.confirm_starts_with_model_measure);
+  scene.cutting = {{"confirm_starts_with_model_measure", true}};
+  EXPECT_TRUE(ReadPipelineOptions(scene).cutting.detector.confirm_starts_with_model_measure);
+  scene.cutting = {{"confirm_starts_with_model_measure", "no"}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
   // Session 7: where S is cut.
   EXPECT_EQ(o.cutting.cut_configuration, "rest");
   scene.cutting = {{"cut_configuration", "current"}};

@@ -712,6 +712,28 @@ TEST(CutDetector, ImageOnlyMeasureAlsoFindsTheSeam) {
   }
 }
 
+// Conservative starts (confirm_starts_with_model_measure): the seam's start must also be an
+// outlier cluster of the model-regularised measure. Across a seam both measures see the gap, so
+// the polyline still follows it; the option only refuses starts, so it starts no earlier.
+TEST(CutDetector, ConservativeStartsStillFindTheSeam) {
+  const FeatureGrid g = MakeGrid();
+  CutDetectorOptions conservative;
+  conservative.confirm_starts_with_model_measure = true;
+  for (unsigned seed : {1u, 2u, 3u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    SeamScenario scenario;
+    scenario.seed = seed;
+    const SeamRun by_default = RunSeam(g, scenario, CutDetectorOptions());
+    const SeamRun run = RunSeam(g, scenario, conservative);
+    ASSERT_GE(run.points.size(), 8u);
+    ASSERT_FALSE(by_default.points.empty());
+    EXPECT_GE(run.points.front().frame, by_default.points.front().frame);
+    for (const CutPoint& p : run.points)
+      EXPECT_LT(std::abs(scenario.Coordinates(p.initial_position_mm).y()),
+                run.resolved.cut_point_radius_mm);
+  }
+}
+
 // One feature's target jumps 3 mm in +x while the model stays: all its pairs have the same mu1,
 // but only those whose targets separate (its neighbours at -x) are outliers by default; the
 // thesis's test (require_opening = false) also takes the pairs that close up.

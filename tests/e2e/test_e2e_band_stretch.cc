@@ -120,5 +120,23 @@ TEST(EndToEnd, BandStretchStarAtTheStemCornerStartsNoCut) {
   EXPECT_GT(without.cut_events, 0);
 }
 
+// Seed 62 (one of the three of the fresh seeds 61-80 that made an event after session 19): at
+// frame 36 four pairs across the stem's junction, two features on each side, pass every test of
+// the image-only measure, and the polyline grows at frame 38 into an event along the junction.
+// The model-regularised measure has no start there, so with conservative starts
+// (cutting.confirm_starts_with_model_measure, opt-in) the start is not confirmed: no event.
+TEST(EndToEnd, BandStretchJunctionStartUnconfirmedByTheModelMeasure) {
+  const Scene scene = BandStretchScene(62);
+  pipeline::PipelineOptions options = pipeline::ReadPipelineOptions(scene);
+  ASSERT_FALSE(options.cutting.detector.confirm_starts_with_model_measure);
+  const pipeline::RunSummary by_default = RunScene(scene, options);
+  options.cutting.detector.confirm_starts_with_model_measure = true;
+  const pipeline::RunSummary conservative = RunScene(scene, options);
+  std::printf("band-stretch seed 62: %d cut events, %d with confirm_starts_with_model_measure\n",
+              by_default.cut_events, conservative.cut_events);
+  EXPECT_GT(by_default.cut_events, 0);
+  EXPECT_EQ(conservative.cut_events, 0);
+}
+
 }  // namespace
 }  // namespace arreg

@@ -185,6 +185,7 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("outlier_weight_cap", &o->detector.outlier_weight_cap);
   r.Optional("reject_lone_features", &o->detector.reject_lone_features);
   r.Optional("reject_star_starts", &o->detector.reject_star_starts);
+  r.Optional("confirm_starts_with_model_measure", &o->detector.confirm_starts_with_model_measure);
   r.Optional("outlier_factor", &o->detector.outlier_factor);
   r.Optional("min_outliers", &o->detector.min_outliers);
   r.Optional("cut_point_radius_mm", &o->detector.cut_point_radius_mm);
@@ -304,6 +305,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"outlier_weight_cap", o.cutting.detector.outlier_weight_cap},
       {"reject_lone_features", o.cutting.detector.reject_lone_features},
       {"reject_star_starts", o.cutting.detector.reject_star_starts},
+      {"confirm_starts_with_model_measure", o.cutting.detector.confirm_starts_with_model_measure},
       {"outlier_factor", o.cutting.detector.outlier_factor},
       {"min_outliers", o.cutting.detector.min_outliers},
       {"cut_point_radius_mm", o.cutting.detector.cut_point_radius_mm},
