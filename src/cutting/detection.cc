@@ -272,6 +272,7 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   result->lone_features = 0;
   result->one_sided_clusters = 0;
   result->star_starts = 0;
+  result->unconfirmed_starts = 0;
   result->refused_points = 0;
   result->refused_segments = 0;
   result->pairs_removed_by_death = 0;
