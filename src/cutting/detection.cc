@@ -516,16 +516,8 @@ bool CutDetector::ConfirmedByModelMeasure(const Eigen::Vector3d& point_mm,
   const std::vector<FeaturePair>& pairs = result.pairs;
   if (model_threshold_ < 0.0) {
     model_measure_.resize(pairs.size());
-    for (size_t k = 0; k < pairs.size(); ++k) {
-      const int l = pairs[k].first, m = pairs[k].second;
-      const Eigen::Vector3d misfit =
-          ((model_mm_.row(l) - target_mm_.row(l)) - (model_mm_.row(m) - target_mm_.row(m)))
-              .transpose();
-      const double delta0_2 = (initial_mm_.row(l) - initial_mm_.row(m)).squaredNorm();
-      const double deltat_2 = (model_mm_.row(l) - model_mm_.row(m)).squaredNorm();
-      model_measure_[k] =
-          delta0_2 == 0.0 ? misfit.norm() : std::sqrt(misfit.squaredNorm() * deltat_2 / delta0_2);
-    }
+    for (size_t k = 0; k < pairs.size(); ++k)
+      model_measure_[k] = Measure(pairs[k].first, pairs[k].second, CutMeasure::kModelRegularised);
     model_threshold_ = std::max(options_.outlier_factor * MeanOverCf(pairs, model_measure_),
                                 options_.min_outlier_measure_mm);
   }
@@ -543,9 +535,9 @@ bool CutDetector::ConfirmedByModelMeasure(const Eigen::Vector3d& point_mm,
   return count >= options_.min_outliers;
 }
 
-double CutDetector::Measure(int l, int m) const {
+double CutDetector::Measure(int l, int m, CutMeasure variant) const {
   Eigen::Vector3d misfit, span;
-  PairDifferences(l, m, &misfit, &span);
+  PairDifferences(l, m, variant, &misfit, &span);
   // mu1 * delta / delta0 under one square root (the measure of every pair, every frame).
   const double delta0_2 = (initial_mm_.row(l) - initial_mm_.row(m)).squaredNorm();
   // Coincident initial features carry no length information; treat them as unstretched.

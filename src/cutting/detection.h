@@ -362,14 +362,20 @@ class CutDetector {
   // frame 0 (eq. 7.10: p^t or p^1, CutDetectorOptions::measure), this frame.
   // Inline: it is in the per-frame loop over C^t.
   void PairDifferences(int l, int m, Eigen::Vector3d* misfit, Eigen::Vector3d* span) const {
+    PairDifferences(l, m, options_.measure, misfit, span);
+  }
+  void PairDifferences(int l, int m, CutMeasure variant, Eigen::Vector3d* misfit,
+                       Eigen::Vector3d* span) const {
     const RowMatX3d& ratio_positions =
-        options_.measure == CutMeasure::kModelRegularised ? model_mm_ : target_mm_;
+        variant == CutMeasure::kModelRegularised ? model_mm_ : target_mm_;
     *misfit = ((model_mm_.row(l) - target_mm_.row(l)) - (model_mm_.row(m) - target_mm_.row(m)))
                   .transpose();
     *span = (ratio_positions.row(l) - ratio_positions.row(m)).transpose();
   }
-  // mu of the pair (l, m) from this frame's positions (eq. 7.9-7.11).
-  double Measure(int l, int m) const;
+  // mu of the pair (l, m) from this frame's positions (eq. 7.9-7.11), with the options' variant
+  // of mu2 or the one given.
+  double Measure(int l, int m) const { return Measure(l, m, options_.measure); }
+  double Measure(int l, int m, CutMeasure variant) const;
   // The mean of per-pair values over the pairs of C_F, or over the bridges when no pair of C_F
   // is left (bridges are up to 2 r_F long and would shift the threshold tau refers to).
   static double MeanOverCf(const std::vector<FeaturePair>& pairs,
