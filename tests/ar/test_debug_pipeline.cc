@@ -2,9 +2,11 @@
 // pipeline with the DebugRecorder attached; the records agree with the pipeline's own state.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <vector>
 
 #include "ar/debug/recorder.h"
 #include "ar/debug/viewer.h"
@@ -47,6 +49,27 @@ TEST(DebugPipeline, RecordsOfARealRunAreConsistent) {
   EXPECT_TRUE(meta["finished"].get<bool>());
   EXPECT_EQ(meta["summary"]["frames"], 8);
   const double r_f = meta["detector"]["neighbour_radius_mm"].get<double>();
+  {
+    // The outlier floor is 1 px (cutting.min_outlier_measure_px) at the attached features'
+    // median frame-0 depth, or the millimetre floor where that is larger.
+    const nlohmann::json rec0 = ReadJson(FrameRecordPath(run, 0));
+    const auto& cam = meta["camera"];
+    std::vector<double> depth;
+    for (const auto& f : rec0["features"]) {
+      if (!f["alive"].get<bool>() || f["lift"] == "not-attached") continue;
+      const auto& z = cam["camera_from_world"][2];
+      depth.push_back(z[0].get<double>() * f["model_mm"][0].get<double>() +
+                      z[1].get<double>() * f["model_mm"][1].get<double>() +
+                      z[2].get<double>() * f["model_mm"][2].get<double>() + z[3].get<double>());
+    }
+    ASSERT_FALSE(depth.empty());
+    std::nth_element(depth.begin(), depth.begin() + depth.size() / 2, depth.end());
+    const double px_mm =
+        depth[depth.size() / 2] / (0.5 * (cam["fx"].get<double>() + cam["fy"].get<double>()));
+    ASSERT_EQ(options.cutting.min_outlier_measure_px, 1.0);
+    EXPECT_GT(px_mm, options.cutting.detector.min_outlier_measure_mm);
+    EXPECT_NEAR(meta["detector"]["min_outlier_measure_mm"].get<double>(), px_mm, 1e-3 * px_mm);
+  }
   int pairs_seen = 0, targets_seen = 0;
   for (int t = 0; t < s.frames; ++t) {
     const nlohmann::json rec = ReadJson(FrameRecordPath(run, t));

@@ -363,6 +363,12 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_FALSE(ReadPipelineOptions(scene).cutting.detector.reject_star_starts);
   scene.cutting = {{"reject_star_starts", 1}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  // Session 20: the outlier floor in pixels.
+  EXPECT_EQ(o.cutting.min_outlier_measure_px, 1.0);
+  scene.cutting = {{"min_outlier_measure_px", 0.5}};
+  EXPECT_EQ(ReadPipelineOptions(scene).cutting.min_outlier_measure_px, 0.5);
+  scene.cutting = {{"min_outlier_measure_px", -1}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
   // Session 20: conservative starts, opt-in.
   EXPECT_FALSE(o.cutting.detector.confirm_starts_with_model_measure);
   scene.cutting = {{"confirm_starts_with_model_measure", true}};

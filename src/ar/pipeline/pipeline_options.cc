@@ -46,6 +46,8 @@ void CuttingStageOptions::Check() const {
                     "cutting.on_surface_tolerance", "must be >= 0, got ", on_surface_tolerance);
   ARREG_CHECK_INPUT(std::isfinite(foresight_mm) && foresight_mm >= 0, "", "cutting.foresight_mm",
                     "must be >= 0, got ", foresight_mm);
+  ARREG_CHECK_INPUT(std::isfinite(min_outlier_measure_px) && min_outlier_measure_px >= 0, "",
+                    "cutting.min_outlier_measure_px", "must be >= 0, got ", min_outlier_measure_px);
   ARREG_CHECK_INPUT(method == "flips" || method == "bielser", "", "cutting.method",
                     "must be \"flips\" or \"bielser\", got \"", method, "\"");
   ARREG_CHECK_INPUT(cut_configuration == "rest" || cut_configuration == "current", "",
@@ -210,6 +212,7 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("on_surface_tolerance", &o->on_surface_tolerance);
   r.Optional("keep_connected", &o->keep_connected);
   r.Optional("first_event_foresight", &o->first_event_foresight);
+  r.Optional("min_outlier_measure_px", &o->min_outlier_measure_px);
   r.Optional("refuse_splitting_segments", &o->refuse_splitting_segments);
   r.OptionalChoice("cut_configuration", {"rest", "current"}, &o->cut_configuration);
   r.Optional("internal_caps", &o->internal_caps);
@@ -328,6 +331,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"on_surface_tolerance", o.cutting.on_surface_tolerance},
       {"keep_connected", o.cutting.keep_connected},
       {"first_event_foresight", o.cutting.first_event_foresight},
+      {"min_outlier_measure_px", o.cutting.min_outlier_measure_px},
       {"refuse_splitting_segments", o.cutting.refuse_splitting_segments},
       {"cut_configuration", o.cutting.cut_configuration},
       {"internal_caps", o.cutting.internal_caps}};

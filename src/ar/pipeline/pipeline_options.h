@@ -108,6 +108,13 @@ struct CuttingStageOptions {
   double foresight_mm = 0.0;
   // The pipeline sets foresight_mm to r_F (true, default) or 0 (false).
   bool first_event_foresight = true;
+  // [px] the outlier test's floor in image pixels: the pipeline converts it to millimetres at
+  // the attached features' median frame-0 depth (z / f, the size of a pixel on the organ) and
+  // the detector uses the larger of that and `detector.min_outlier_measure_mm`. A misfit
+  // difference below about one pixel is tracking precision, whatever the organ's distance
+  // (0.1 mm is a third of a pixel on the synthetic kidney, a quarter on the bands). 0 leaves
+  // the millimetre floor alone. Default 1 (docs/detection.md, "A floor in pixels").
+  double min_outlier_measure_px = 1.0;
   // With keep_connected, the detector is given the cut handler's verdict before it adds a
   // segment (cutting::CutDetector::SetSegmentCheck): a point whose segment would make an event
   // that keep_connected rejects at every depth is refused, as a point that is no growth of the

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 #include <optional>
 #include <unordered_map>
+#include <vector>
 
 #include "ar/lift/lifting.h"
 #include "ar/pipeline/cut_handler.h"
@@ -100,6 +101,24 @@ mechanics::Material ToMechanicsMaterial(const Material& m) {
   out.poisson_ratio = m.poisson_ratio;
   out.density_kg_per_m3 = m.density_kg_m3;
   return out;
+}
+
+// The detector's options with the outlier floor of CuttingStageOptions::min_outlier_measure_px:
+// that many pixels at the median camera depth of the features' frame-0 points `p0_mm`.
+cutting::CutDetectorOptions WithPixelFloor(const CuttingStageOptions& o,
+                                           const PinholeCamera& camera, const RowMatX3d& p0_mm) {
+  cutting::CutDetectorOptions d = o.detector;
+  if (o.min_outlier_measure_px <= 0 || p0_mm.rows() == 0) return d;
+  std::vector<double> depth(p0_mm.rows());
+  for (Eigen::Index i = 0; i < p0_mm.rows(); ++i)
+    depth[i] = (camera.camera_from_world * p0_mm.row(i).transpose()).z();
+  const auto mid = depth.begin() + depth.size() / 2;
+  std::nth_element(depth.begin(), mid, depth.end());
+  const double mm_per_px = *mid / (0.5 * (camera.fx + camera.fy));
+  if (std::isfinite(mm_per_px) && mm_per_px > 0)
+    d.min_outlier_measure_mm =
+        std::max(d.min_outlier_measure_mm, o.min_outlier_measure_px * mm_per_px);
+  return d;
 }
 
 }  // namespace
@@ -289,7 +308,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       if (features[r].alive) ids.push_back(r);
     RowMatX3d p0(ids.size(), 3);
     for (size_t i = 0; i < ids.size(); ++i) p0.row(i) = attach_points.row(ids[i]);
-    detector.emplace(o.cutting.detector);
+    detector.emplace(WithPixelFloor(o.cutting, camera, p0));
     detector->Initialize(p0, ids);
     CuttingStageOptions co = o.cutting;
     co.foresight_mm = co.first_event_foresight ? detector->options().neighbour_radius_mm : 0.0;
