@@ -318,7 +318,7 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   const double mean = MeanOverCf(pairs_, result->measure);
   result->mean_measure = mean;
   model_threshold_ = -1.0;  // the model-regularised measure is computed when a start asks
-  threshold_ = std::max(options_.outlier_factor * mean, options_.min_outlier_measure_mm);
+  threshold_ = OutlierThreshold(options_.outlier_factor, mean);
   for (int k = 0; k < num_pairs; ++k) {
     if (result->measure[k] <= threshold_) continue;
     if (options_.require_opening && !Opens(pairs_[k])) continue;
@@ -400,7 +400,7 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
       for (int k : cluster_) {
         const int l = result->pairs[k].first, m = result->pairs[k].second;
         const double w = result->measure[k];
-        current += w * 0.5 * (model_mm_.row(l) + model_mm_.row(m)).transpose();
+        current += w * CurrentMidpoint(l, m);
         initial += w * 0.5 * (initial_mm_.row(l) + initial_mm_.row(m)).transpose();
         weight += w;
       }
@@ -518,8 +518,7 @@ bool CutDetector::ConfirmedByModelMeasure(const Eigen::Vector3d& point_mm,
     model_measure_.resize(pairs.size());
     for (size_t k = 0; k < pairs.size(); ++k)
       model_measure_[k] = Measure(pairs[k].first, pairs[k].second, CutMeasure::kModelRegularised);
-    model_threshold_ = std::max(options_.outlier_factor * MeanOverCf(pairs, model_measure_),
-                                options_.min_outlier_measure_mm);
+    model_threshold_ = OutlierThreshold(options_.outlier_factor, MeanOverCf(pairs, model_measure_));
   }
   const double r2 = options_.neighbour_radius_mm * options_.neighbour_radius_mm;
   double count = 0.0;
@@ -527,9 +526,7 @@ bool CutDetector::ConfirmedByModelMeasure(const Eigen::Vector3d& point_mm,
     if (model_measure_[k] <= model_threshold_) continue;
     const FeaturePair& p = pairs[k];
     if (options_.require_opening && !Opens(p)) continue;
-    const Eigen::Vector3d mid =
-        0.5 * (model_mm_.row(p.first) + model_mm_.row(p.second)).transpose();
-    if ((mid - point_mm).squaredNorm() > r2) continue;
+    if ((CurrentMidpoint(p.first, p.second) - point_mm).squaredNorm() > r2) continue;
     count += std::min(model_measure_[k] / model_threshold_, options_.outlier_weight_cap);
   }
   return count >= options_.min_outliers;
@@ -722,8 +719,7 @@ void CutDetector::BuildProbe(bool front) {
 bool CutDetector::ProbeGrowth(bool front, DetectionResult* result, CutPoint* point) {
   BuildProbe(front);  // when the extremity has changed
   const Probe& probe = probes_[front ? 1 : 0];
-  const double threshold = std::max(options_.probe_outlier_factor * result->mean_measure,
-                                    options_.min_outlier_measure_mm);
+  const double threshold = OutlierThreshold(options_.probe_outlier_factor, result->mean_measure);
   probe_outliers_.clear();
   Eigen::Vector3d misfit, span;
   for (size_t k = 0; k < probe.pairs.size(); ++k) {
@@ -766,7 +762,7 @@ bool CutDetector::ProbeGrowth(bool front, DetectionResult* result, CutPoint* poi
   for (const auto& [k, mu] : probe_outliers_) {
     count += std::min(mu / threshold, options_.outlier_weight_cap);
     const ProbePair& p = probe.pairs[k];
-    mid_t += mu * 0.5 * (model_mm_.row(p.first) + model_mm_.row(p.second)).transpose();
+    mid_t += mu * CurrentMidpoint(p.first, p.second);
     mid_0 += mu * 0.5 * (initial_mm_.row(p.first) + initial_mm_.row(p.second)).transpose();
     cross_t +=
         mu * ((1.0 - p.s) * model_mm_.row(p.first) + p.s * model_mm_.row(p.second)).transpose();
@@ -797,8 +793,7 @@ void CutDetector::SelectCluster(const DetectionResult& result) {
   // sum of mu; the cluster is that neighbourhood. O(#candidates^2), and candidates are few.
   const double r2 = options_.neighbour_radius_mm * options_.neighbour_radius_mm;
   auto midpoint = [&](int k) -> Eigen::Vector3d {
-    const FeaturePair& p = result.pairs[k];
-    return 0.5 * (model_mm_.row(p.first) + model_mm_.row(p.second)).transpose();
+    return CurrentMidpoint(result.pairs[k].first, result.pairs[k].second);
   };
   double best_sum = -1.0;
   int best = -1;

@@ -409,6 +409,15 @@ class CutDetector {
   // given, and num_pairs >= 2) receives the largest number of those pairs any one feature is in.
   template <typename PairOf>
   int StarHub(int num_pairs, const PairOf& pair_of, int* most = nullptr);
+  // The outlier threshold max(factor * mean, min_outlier_measure_mm) [mm] (tau for C^t and its
+  // model-regularised confirmation, probe_outlier_factor for the growth probe).
+  double OutlierThreshold(double factor, double mean) const {
+    return std::max(factor * mean, options_.min_outlier_measure_mm);
+  }
+  // The midpoint of features l and m in this frame's model positions p^t.
+  Eigen::Vector3d CurrentMidpoint(int l, int m) const {
+    return 0.5 * (model_mm_.row(l) + model_mm_.row(m)).transpose();
+  }
   // Sum over `outliers` (indices into result.pairs) of min(mu / threshold, outlier_weight_cap).
   double OutlierCount(const std::vector<int>& outliers, const DetectionResult& result) const;
   // The pair's targets are farther apart than its model points (delta^1 > delta^t).
