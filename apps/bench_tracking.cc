@@ -80,7 +80,8 @@ int RunBenchTracking(int argc, char** argv) {
       "frame 0), describe_ms (64-D descriptors of those points), track_ms_per_frame\n"
       "(FeatureTracker::Track incl. pyramid, forward-backward check, filters and\n"
       "re-identification; track_no_reid_ms_per_frame without the latter,\n"
-      "track_whole_frame_reid_ms_per_frame with SURF on the whole frame for it),\n"
+      "track_whole_frame_reid_ms_per_frame with SURF on the whole frame for it,\n"
+      "track_drift_ms_per_frame with the drift correction of tracking.drift_correction),\n"
       "lk_500_ms (Track() of 500 features detected in frame f-1 into frame f, f = 1..10),\n"
       "lk_500_opencv_ms (the same with OpenCV's calcOpticalFlowPyrLK as the LK backend),\n"
       "features_initial,\n"
@@ -168,6 +169,10 @@ int RunBenchTracking(int argc, char** argv) {
   FeatureTrackerOptions whole_frame_options = options;
   whole_frame_options.reidentify.search_near_predictions = false;
   const ClipRun clip_whole_frame = track_clip(whole_frame_options, "");
+  // With the (opt-in) drift correction: what it costs.
+  FeatureTrackerOptions drift_options = options;
+  drift_options.drift.enabled = true;
+  const ClipRun clip_drift = track_clip(drift_options, "");
   // The default last: the first clip measured in a process read up to 1.5 ms
   // per frame higher (fresh buffers), which hid the difference to the above.
   const ClipRun clip = track_clip(options, tracks_csv);
@@ -230,6 +235,8 @@ int RunBenchTracking(int argc, char** argv) {
   out["features_final_no_reid"] = clip_no_reid.final;
   out["track_whole_frame_reid_ms_per_frame"] = clip_whole_frame.ms_per_frame;
   out["features_final_whole_frame_reid"] = clip_whole_frame.final;
+  out["track_drift_ms_per_frame"] = clip_drift.ms_per_frame;
+  out["features_final_drift"] = clip_drift.final;
   if (!skip_lk_500) {
     out["lk_500_ms"] = lk_500_ms;
     out["lk_500_opencv_ms"] = lk_500_opencv_ms;
@@ -255,6 +262,10 @@ int RunBenchTracking(int argc, char** argv) {
       "re-identifications, "
       "%d features at the end)\n",
       clip_whole_frame.ms_per_frame, clip_whole_frame.reidentified, clip_whole_frame.final);
+  std::printf(
+      "  track_drift_ms_per_frame %8.3f  (drift correction on, every %d frames: %d features at "
+      "the end)\n",
+      clip_drift.ms_per_frame, drift_options.drift.every_frames, clip_drift.final);
   if (!skip_lk_500) {
     std::printf(
         "  lk_500_ms            %8.3f  (Track() of %d features, frame pairs 0-1 .. %zu-%zu)\n",

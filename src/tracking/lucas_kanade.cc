@@ -77,6 +77,14 @@ ARREG_LK_TARGETS void ScharrRow(const float* __restrict above, const float* __re
 
 }  // namespace
 
+Margins MarginsOf(const cv::Mat& view) {
+  cv::Size whole;
+  cv::Point offset;
+  view.locateROI(whole, offset);
+  return {offset.x, offset.y, whole.width - offset.x - view.cols,
+          whole.height - offset.y - view.rows};
+}
+
 void LucasKanadePyramid::Build(const cv::Mat& gray, int pyramid_levels, int window_px) {
   ARREG_ASSERT(gray.type() == CV_8UC1, "");
   // OpenCV's pyramid (the 8-bit levels, padded by one window, reflected) ...
@@ -115,19 +123,6 @@ void LucasKanadePyramid::Build(const cv::Mat& gray, int pyramid_levels, int wind
 }
 
 namespace {
-
-// How far a view may be read outside its rows/cols (the padding of its buffer).
-struct Margins {
-  int left, top, right, bottom;
-};
-
-Margins MarginsOf(const cv::Mat& view) {
-  cv::Size whole;
-  cv::Point offset;
-  view.locateROI(whole, offset);
-  return {offset.x, offset.y, whole.width - offset.x - view.cols,
-          whole.height - offset.y - view.rows};
-}
 
 // The window kernels run over `cols` (a multiple of 8) columns, of which the
 // first `win` belong to the window: `mask` is 1 there and 0 beyond, so the

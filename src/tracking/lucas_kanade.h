@@ -67,6 +67,12 @@ struct LucasKanadeOptions {
   void Check() const;  // throws arreg::Error naming the bad field
 };
 
+// How far a view may be read outside its rows/cols (the padding of the buffer it views).
+struct Margins {
+  int left, top, right, bottom;
+};
+Margins MarginsOf(const cv::Mat& view);
+
 // One frame's pyramid: levels (cv::buildOpticalFlowPyramid's, padded by one
 // window) as floats with their Scharr gradients. Built once per frame, it
 // is the target of the forward pass into this frame, the template of the

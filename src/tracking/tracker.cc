@@ -95,6 +95,7 @@ void FeatureTrackerOptions::Check() const {
   surf.Check();
   reidentify.Check();
   appearance.Check();
+  drift.Check();
   lk.Check();
   outliers.Check();
   specular.Check();
@@ -330,6 +331,7 @@ int FeatureTracker::num_active() const {
 }
 
 void FeatureTracker::PrepareFrame(const cv::Mat& image, const cv::Mat& roi_mask) {
+  roi_ = roi_mask;
   const std::string where = "frame " + std::to_string(frame_);
   ARREG_CHECK_INPUT(image.type() == CV_8UC1 || image.type() == CV_8UC3, "", where,
                     "tracker input must be an 8-bit grey or BGR image");
@@ -450,6 +452,7 @@ int FeatureTracker::Detect(const cv::Mat& roi_mask) {
   for (size_t i = 0; i < accepted.size(); ++i) {
     const int id = store_.Add(accepted[i], descriptors.row(static_cast<int>(i)));
     RememberLook(id, accepted[i].position_px);
+    Anchor(id, accepted[i].position_px);
     store_.Record(id, {frame_, accepted[i].position_px, TrackStatus::kTracked});
     current_.push_back({id, accepted[i].position_px, cv::Point2f(0, 0), TrackStatus::kTracked});
     previous_position_.push_back(accepted[i].position_px);
@@ -754,8 +757,34 @@ void FeatureTracker::CheckAppearance() {
   }
 }
 
+void FeatureTracker::Anchor(int id, cv::Point2f position_px) {
+  if (!options_.drift.enabled) return;
+  if (static_cast<int>(anchors_.size()) <= id) {
+    anchors_.resize(id + 1);
+    anchor_linear_.resize(id + 1);
+  }
+  anchor_linear_[id] = cv::Matx22f::eye();
+  if (!MakeAffineAnchor(pyramid_.float_image(0), position_px, options_.drift,
+                        options_.lk.min_eigen_threshold, roi_, &anchors_[id]))
+    anchors_[id].side = 0;
+}
+
+void FeatureTracker::CorrectDrift() {
+  for (FeatureState& f : current_) {
+    if (f.status != TrackStatus::kTracked || anchors_[f.id].side == 0) continue;
+    const AffineRefinement refined =
+        RefineAffine(anchors_[f.id], pyramid_.float_image(0), {f.position_px, anchor_linear_[f.id]},
+                     options_.drift);
+    if (!refined.accepted) continue;
+    f.displacement_px += refined.warp.centre - f.position_px;
+    f.position_px = refined.warp.centre;
+    anchor_linear_[f.id] = refined.warp.linear;
+  }
+}
+
 void FeatureTracker::Restore(int id, const cv::Point2f& position_px) {
   RememberLook(id, position_px);
+  Anchor(id, position_px);
   current_.push_back({id, position_px, cv::Point2f(0, 0), TrackStatus::kTracked});
   previous_position_.push_back(position_px);
   store_.Record(id, {frame_, position_px, TrackStatus::kTracked, true});
@@ -911,6 +940,8 @@ TrackFrameSummary FeatureTracker::Initialize(const cv::Mat& image, const cv::Mat
   previous_position_.clear();
   lost_.clear();
   acquired_look_.clear();
+  anchors_.clear();
+  anchor_linear_.clear();
   reference_descriptors_.release();
   round_frame_ = -1;
   PrepareFrame(image, roi_mask);
@@ -1002,6 +1033,7 @@ TrackFrameSummary FeatureTracker::Track(const cv::Mat& image, const cv::Mat& roi
         if (outlier_flags_[j])
           current_[candidates_[j]].status = TrackStatus::kOutlierSpatioTemporal;
     }
+    if (options_.drift.enabled && frame_ % options_.drift.every_frames == 0) CorrectDrift();
     if (options_.appearance.enabled && frame_ % options_.appearance.every_frames == 0)
       CheckAppearance();
     for (const FeatureState& f : current_) store_.Record(f.id, {frame_, f.position_px, f.status});

@@ -8,6 +8,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "tracking/affine_refine.h"
 #include "tracking/lucas_kanade.h"
 #include "tracking/surf.h"
 
@@ -152,6 +153,10 @@ struct FeatureTrackerOptions {
   SpecularOptions specular;
   ReidentifyOptions reidentify;
   AppearanceCheckOptions appearance;
+  // Drift correction (off by default): every few frames each tracked feature's window at
+  // acquisition is aligned to the frame with an affine warp from where Lucas-Kanade put it
+  // (affine_refine.h); the feature moves there when it matches.
+  DriftCorrectionOptions drift;
   // Most features followed at once. Default 1000.
   int max_features = 1000;
   // Fewest features wanted after a detection (0 = off, the default). When the points above
@@ -314,6 +319,16 @@ class FeatureTracker {
   // Marks the tracked features of current_ whose window no longer correlates
   // with their look at acquisition kLostAppearance.
   void CheckAppearance();
+  // Per id: its window in the frame where it was detected or last re-identified,
+  // as an affine anchor (DriftCorrectionOptions), and the warp of its last
+  // accepted refinement; anchor side 0 when the window could not anchor.
+  std::vector<AffineAnchor> anchors_;
+  cv::Mat roi_;  // the current frame's ROI mask (empty: the whole image)
+  std::vector<cv::Matx22f> anchor_linear_;
+  // Anchors feature `id` at `position_px` in the current frame.
+  void Anchor(int id, cv::Point2f position_px);
+  // Moves the tracked features of current_ to where their anchors align.
+  void CorrectDrift();
   // Scratch kept between frames to avoid reallocation.
   std::vector<cv::Point2f> points_from_, points_to_, points_back_;
   std::vector<uint8_t> lk_status_, lk_status_back_;

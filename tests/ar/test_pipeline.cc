@@ -461,15 +461,25 @@ TEST(Overlay, DrawsOnlyOverTheOrganAndBlendsByOpacity) {
 TEST(PipelineOptions, TrackingAndDetectorKeysRoundTrip) {
   Scene scene;
   scene.path = "scene.json";
-  scene.tracking = {{"appearance_check", true}, {"appearance_min_correlation", 0.7}};
+  scene.tracking = {{"appearance_check", true},    {"appearance_min_correlation", 0.7},
+                    {"drift_correction", true},    {"drift_window_px", 25},
+                    {"drift_every_frames", 1},     {"drift_min_correlation", 0.8},
+                    {"drift_max_correction_px", 3}};
   scene.cutting = {{"neighbours_per_feature", 12}, {"outlier_weight_cap", 1.5}};
   const PipelineOptions o = ReadPipelineOptions(scene);
   EXPECT_TRUE(o.tracking.appearance.enabled);
   EXPECT_DOUBLE_EQ(o.tracking.appearance.min_correlation, 0.7);
+  EXPECT_TRUE(o.tracking.drift.enabled);
+  EXPECT_EQ(o.tracking.drift.window_px, 25);
+  EXPECT_EQ(o.tracking.drift.every_frames, 1);
+  EXPECT_DOUBLE_EQ(o.tracking.drift.min_correlation, 0.8);
+  EXPECT_DOUBLE_EQ(o.tracking.drift.max_correction_px, 3);
   EXPECT_EQ(o.cutting.detector.neighbours_per_feature, 12);
   const nlohmann::json j = PipelineOptionsToJson(o);
   EXPECT_EQ(j["tracking"]["appearance_check"], true);
   EXPECT_DOUBLE_EQ(j["tracking"]["appearance_min_correlation"].get<double>(), 0.7);
+  EXPECT_EQ(j["tracking"]["drift_correction"], true);
+  EXPECT_EQ(j["tracking"]["drift_window_px"], 25);
   EXPECT_EQ(j["cutting"]["neighbours_per_feature"], 12);
 
   scene.tracking = {{"appearance_min_correlation", 1.5}};
@@ -478,6 +488,13 @@ TEST(PipelineOptions, TrackingAndDetectorKeysRoundTrip) {
     FAIL() << "a correlation above 1 was accepted";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("min_correlation"), std::string::npos) << e.what();
+  }
+  scene.tracking = {{"drift_window_px", 24}};
+  try {
+    ReadPipelineOptions(scene);
+    FAIL() << "an even drift window was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("window_px"), std::string::npos) << e.what();
   }
 }
 

@@ -147,6 +147,11 @@ void ReadTracking(const Scene& scene, FeatureTrackerOptions* o) {
   r.Optional("specular_filter", &o->specular.enabled);
   r.Optional("appearance_check", &o->appearance.enabled);
   r.Optional("appearance_min_correlation", &o->appearance.min_correlation);
+  r.Optional("drift_correction", &o->drift.enabled);
+  r.Optional("drift_window_px", &o->drift.window_px);
+  r.Optional("drift_every_frames", &o->drift.every_frames);
+  r.Optional("drift_min_correlation", &o->drift.min_correlation);
+  r.Optional("drift_max_correction_px", &o->drift.max_correction_px);
   r.Finish();
 }
 
@@ -283,7 +288,12 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                    {"outlier_slack_px", o.tracking.outliers.slack_px},
                    {"specular_filter", o.tracking.specular.enabled},
                    {"appearance_check", o.tracking.appearance.enabled},
-                   {"appearance_min_correlation", o.tracking.appearance.min_correlation}};
+                   {"appearance_min_correlation", o.tracking.appearance.min_correlation},
+                   {"drift_correction", o.tracking.drift.enabled},
+                   {"drift_window_px", o.tracking.drift.window_px},
+                   {"drift_every_frames", o.tracking.drift.every_frames},
+                   {"drift_min_correlation", o.tracking.drift.min_correlation},
+                   {"drift_max_correction_px", o.tracking.drift.max_correction_px}};
   j["lifting"] = {
       {"target", o.lifting.target == lift::LiftTarget::kPlane ? "plane" : "surface"},
       {"surface_update", o.lifting.surface_update == lift::SurfaceUpdate::kRayCastWithFallback
