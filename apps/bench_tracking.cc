@@ -169,7 +169,7 @@ int RunBenchTracking(int argc, char** argv) {
   FeatureTrackerOptions whole_frame_options = options;
   whole_frame_options.reidentify.search_near_predictions = false;
   const ClipRun clip_whole_frame = track_clip(whole_frame_options, "");
-  // With the (opt-in) drift correction: what it costs.
+  // With the drift correction, whatever the default: what it costs.
   FeatureTrackerOptions drift_options = options;
   drift_options.drift.enabled = true;
   const ClipRun clip_drift = track_clip(drift_options, "");

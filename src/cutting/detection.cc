@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdlib>
 #include <iterator>
 #include <string>
 #include <utility>
@@ -79,6 +80,11 @@ void CutDetectorOptions::Check() const {
                       degrees);
   };
   check_cone(boundary_cone_half_angle_deg, "cut_detector.boundary_cone_half_angle_deg");
+  ARREG_CHECK_INPUT(closing_window_frames >= 0, "", "cut_detector.closing_window_frames",
+                    "must be >= 0, got ", closing_window_frames);
+  ARREG_CHECK_INPUT(std::isfinite(max_closing_fraction) && max_closing_fraction >= 0.0, "",
+                    "cut_detector.max_closing_fraction", "must be >= 0, got ",
+                    max_closing_fraction);
   ARREG_CHECK_INPUT(std::isfinite(min_opening_balance) && min_opening_balance >= 0.0 &&
                         min_opening_balance <= 1.0,
                     "", "cut_detector.min_opening_balance", "must be in [0, 1], got ",
@@ -140,6 +146,7 @@ void CutDetector::Initialize(const RowMatX3d& initial_positions_mm, const std::v
   bridge_candidates_known_.assign(n, 0);
   model_mm_.setZero(n, 3);
   target_mm_.setZero(n, 3);
+  target_history_.assign(options_.closing_window_frames + 1, RowMatX3d());
 
   // Uniform grid with cell size r_F: neighbours lie in the 27 surrounding cells.
   pairs_.clear();
@@ -264,6 +271,7 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
       alive_[f] = 0;
       any_died = true;
     }
+  if (!target_history_.empty()) target_history_[frame_ % target_history_.size()] = target_mm_;
 
   result->frame = frame_;
   result->new_cut_points.clear();
@@ -273,6 +281,7 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   result->one_sided_clusters = 0;
   result->star_starts = 0;
   result->unconfirmed_starts = 0;
+  result->closing_starts = 0;
   result->refused_points = 0;
   result->refused_segments = 0;
   result->pairs_removed_by_death = 0;
@@ -333,9 +342,9 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   // The bridges' pass meets the clusters the first pass rejected again: each rejection count
   // of the frame is the larger of the two passes', so that a cluster is counted once.
   const bool starting = polyline_.empty();
-  int* const rejections[] = {&result->lone_features, &result->one_sided_clusters,
-                             &result->star_starts, &result->unconfirmed_starts,
-                             &result->refused_points};
+  int* const rejections[] = {&result->lone_features,  &result->one_sided_clusters,
+                             &result->star_starts,    &result->unconfirmed_starts,
+                             &result->closing_starts, &result->refused_points};
   constexpr int kRejections = static_cast<int>(std::size(rejections));
   std::array<int, kRejections> first_pass{};
   for (int pass = 0; pass < (starting ? 2 : 1) && result->new_cut_points.empty(); ++pass) {
@@ -440,6 +449,12 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
           options_.measure == CutMeasure::kImageOnly && !grows &&
           !ConfirmedByModelMeasure(point.position_mm, *result)) {
         ++result->unconfirmed_starts;
+        DropClusterFromCandidates();
+        continue;
+      }
+      if (options_.closing_window_frames > 0 && (!grows || std::getenv("ARREG_CLOSING_ALL")) &&
+          ClusterDistanceChange(*result) < -options_.max_closing_fraction) {
+        ++result->closing_starts;
         DropClusterFromCandidates();
         continue;
       }
@@ -956,6 +971,22 @@ void CutDetector::DropClusterFromCandidates() {
                                      return std::binary_search(cluster_.begin(), cluster_.end(), k);
                                    }),
                     candidates_.end());
+}
+
+double CutDetector::ClusterDistanceChange(const DetectionResult& result) const {
+  const int window = std::min(frame_, options_.closing_window_frames);
+  if (window == 0 || cluster_.empty()) return 0.0;
+  const RowMatX3d& past = target_history_[(frame_ - window) % target_history_.size()];
+  std::vector<double> change;
+  change.reserve(cluster_.size());
+  for (int k : cluster_) {
+    const int l = result.pairs[k].first, m = result.pairs[k].second;
+    const double before = (past.row(l) - past.row(m)).norm();
+    if (before > 0.0) change.push_back((target_mm_.row(l) - target_mm_.row(m)).norm() / before - 1);
+  }
+  if (change.empty()) return 0.0;
+  std::nth_element(change.begin(), change.begin() + change.size() / 2, change.end());
+  return change[change.size() / 2];
 }
 
 double CutDetector::OpeningBalance(const DetectionResult& result) const {

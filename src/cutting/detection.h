@@ -131,6 +131,18 @@ struct CutDetectorOptions {
   // (cut on 5 of 13 seeds without it, 0 with it), so it is off by default. Ignored with
   // measure kModelRegularised. Default false.
   bool confirm_starts_with_model_measure = false;
+  // A cut opens: the targets of its crossing pairs move apart as it does. A cluster that would
+  // start a polyline is rejected when its pairs are closing instead: the median over its pairs
+  // of the relative change of their targets' distance (p^1) over the last
+  // closing_window_frames frames is below -max_closing_fraction. Where a stretched band is
+  // released, its coarse model lags at the stem while the tissue relaxes, and opening clusters
+  // of shrinking pairs form there; with the drift-corrected tracks (FeatureTracker's
+  // DriftCorrectionOptions) their pairs shrank by a median 3-8.5 % over 5 frames at all ten false
+  // starts on 81 seeds, while the starts of real cuts (102 scenes) changed by -0.1 % or more
+  // (median +17 %) (docs/detection.md "Closing clusters start no cut"). Not in the thesis;
+  // 0 frames disables. Defaults 5 and 0.01.
+  int closing_window_frames = 5;
+  double max_closing_fraction = 0.01;
   // The polyline grows only at its extremities (thesis 7.5.3): a cut point farther than
   // r_pc + 1.5 r_F (frame-0 coordinates) from both extremities is no growth of it. The next
   // point of a growing cut comes from pairs across the cut just outside the r_pc sphere around
@@ -265,6 +277,8 @@ struct DetectionResult {
   // Clusters whose start the model-regularised measure did not confirm
   // (confirm_starts_with_model_measure).
   int unconfirmed_starts = 0;
+  // Clusters whose pairs were closing (closing_window_frames, max_closing_fraction).
+  int closing_starts = 0;
   int refused_points = 0;  // cut points refused this frame as no growth of the polyline
   // (or with too few pairs to start one). Each of these counts a cluster once: a frame
   // without a polyline makes a second pass, with bridges, and reports the larger count.
@@ -340,6 +354,9 @@ class CutDetector {
   void DropClusterFromCandidates();
   // Opening balance of cluster_ (see CutDetectorOptions::min_opening_balance).
   double OpeningBalance(const DetectionResult& result) const;
+  // The median over cluster_'s pairs of the relative change of their targets' distance since
+  // closing_window_frames frames ago (or the first frame, if fewer); 0 in the first frame.
+  double ClusterDistanceChange(const DetectionResult& result) const;
   bool ExtremityAtBorder(bool front) const;
   // The bridge of the pair (l, dead) (see CutDetectorOptions::bridge_radius_factor), -1 if none.
   int BridgeFeature(int l, int dead);
@@ -473,6 +490,8 @@ class CutDetector {
   std::vector<int> row_of_feature_;
   RowMatX3d model_mm_;   // (#F x 3) p^t of the alive features
   RowMatX3d target_mm_;  // (#F x 3) p^1
+  // target_mm_ of the last closing_window_frames + 1 frames, frame f in slot f % size.
+  std::vector<RowMatX3d> target_history_;
   std::vector<int> candidates_;
   std::vector<int> cluster_;
   std::vector<int> cluster_of_cf_;  // cluster_ without its bridges

@@ -41,7 +41,8 @@ struct Readable {
 Readable ReadableArea(const cv::Mat& image) {
   const Margins m = MarginsOf(image);
   return {static_cast<float>(-m.left), static_cast<float>(-m.top),
-          static_cast<float>(image.cols + m.right - 2), static_cast<float>(image.rows + m.bottom - 2)};
+          static_cast<float>(image.cols + m.right - 2),
+          static_cast<float>(image.rows + m.bottom - 2)};
 }
 
 bool Inside(const Readable& area, float x, float y) {
@@ -156,8 +157,8 @@ void SumPixels(const AffineAnchor& a, const WarpArgs& w, size_t begin, size_t en
 
 #if defined(__GNUC__) && defined(__x86_64__)
 // Eight pixels a step (AVX2 gathers, FMA); returns how many pixels it summed.
-__attribute__((target("avx2,fma"))) size_t SumPixelsAvx2(const AffineAnchor& a,
-                                                         const WarpArgs& w, WindowSums* sums) {
+__attribute__((target("avx2,fma"))) size_t SumPixelsAvx2(const AffineAnchor& a, const WarpArgs& w,
+                                                         WindowSums* sums) {
   const size_t n = a.t.size(), blocks = n / 8 * 8;
   const __m256 cx = _mm256_set1_ps(w.cx), cy = _mm256_set1_ps(w.cy);
   const __m256 l00 = _mm256_set1_ps(w.l00), l01 = _mm256_set1_ps(w.l01);
@@ -179,15 +180,15 @@ __attribute__((target("avx2,fma"))) size_t SumPixelsAvx2(const AffineAnchor& a,
     const __m256 p11 = _mm256_i32gather_ps(w.origin + w.step + 1, index, 4);
     const __m256 top = _mm256_fmadd_ps(fx, _mm256_sub_ps(p01, p00), p00);
     const __m256 bottom = _mm256_fmadd_ps(fx, _mm256_sub_ps(p11, p10), p10);
-    const __m256 v =
-        _mm256_sub_ps(_mm256_fmadd_ps(fy, _mm256_sub_ps(bottom, top), top), offset);
+    const __m256 v = _mm256_sub_ps(_mm256_fmadd_ps(fy, _mm256_sub_ps(bottom, top), top), offset);
     s1 = _mm256_add_ps(s1, v);
     s2 = _mm256_fmadd_ps(v, v, s2);
     st = _mm256_fmadd_ps(_mm256_loadu_ps(&a.t[k]), v, st);
-    for (int i = 0; i < 6; ++i) si[i] = _mm256_fmadd_ps(_mm256_loadu_ps(&a.sd[i * n + k]), v, si[i]);
+    for (int i = 0; i < 6; ++i)
+      si[i] = _mm256_fmadd_ps(_mm256_loadu_ps(&a.sd[i * n + k]), v, si[i]);
   }
   const __m256 all[9] = {s1, s2, st, si[0], si[1], si[2], si[3], si[4], si[5]};
-  double* targets[9] = {&sums->s1, &sums->s2, &sums->st, &sums->si[0], &sums->si[1],
+  double* targets[9] = {&sums->s1,    &sums->s2,    &sums->st,    &sums->si[0], &sums->si[1],
                         &sums->si[2], &sums->si[3], &sums->si[4], &sums->si[5]};
   alignas(32) float lanes[8];
   for (int j = 0; j < 9; ++j) {
@@ -219,8 +220,7 @@ bool CompareWarped(const AffineAnchor& a, const cv::Mat& image, const Readable& 
   for (float su : {-h, h})
     for (float sv : {-h, h}) {
       const cv::Vec2d corner = centre + linear * cv::Vec2d(su, sv);
-      if (!Inside(area, static_cast<float>(corner[0]), static_cast<float>(corner[1])))
-        return false;
+      if (!Inside(area, static_cast<float>(corner[0]), static_cast<float>(corner[1]))) return false;
     }
   WarpArgs w;
   w.origin = image.ptr<float>();
@@ -243,8 +243,7 @@ bool CompareWarped(const AffineAnchor& a, const cv::Mat& image, const Readable& 
   const double scale = 1.0 / std::sqrt(ss);
   // sum t = 0, so the mean drops out of the correlation.
   out->ncc = scale * sums.st;
-  for (int i = 0; i < 6; ++i)
-    out->b[i] = scale * (sums.si[i] - mean * a.sd_sum[i]) - a.sd_t[i];
+  for (int i = 0; i < 6; ++i) out->b[i] = scale * (sums.si[i] - mean * a.sd_sum[i]) - a.sd_t[i];
   return true;
 }
 

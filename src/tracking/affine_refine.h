@@ -14,12 +14,8 @@
 
 namespace arreg {
 
-// Off by default: it makes the tracks far more accurate on the synthetic scenes, but
-// the cut detector's relative outlier test, tuned with the drift in the tracks, then
-// sees a smaller mean measure, and the end-to-end results are mixed (docs/tracking.md,
-// "Drift correction").
 struct DriftCorrectionOptions {
-  bool enabled = false;  // default false
+  bool enabled = true;  // default true
   // Side of the anchored window, pixels (odd, 9..63). Larger windows hold the six parameters
   // better, smaller ones are more local (band-stretch seeds 31, 47, 62, features off by more
   // than 3 px at frame 45: 14-17 / 10-13 / 8-11 / 4-8 / 6-10 / 7-17 with 15 / 19 / 25 / 31 /

@@ -153,8 +153,8 @@ struct FeatureTrackerOptions {
   SpecularOptions specular;
   ReidentifyOptions reidentify;
   AppearanceCheckOptions appearance;
-  // Drift correction (off by default): every few frames each tracked feature's window at
-  // acquisition is aligned to the frame with an affine warp from where Lucas-Kanade put it
+  // Drift correction: every few frames each tracked feature's window at acquisition is
+  // aligned to the frame with an affine warp from where Lucas-Kanade put it
   // (affine_refine.h); the feature moves there when it matches.
   DriftCorrectionOptions drift;
   // Most features followed at once. Default 1000.

@@ -169,6 +169,7 @@ TEST(DebugRecorder, PairsNameNeighboursByIdAndFlagOutliersAboveTauMean) {
     EXPECT_EQ(det["one_sided_clusters"].get<int>(), d.one_sided_clusters);
     EXPECT_EQ(det["star_starts"].get<int>(), d.star_starts);
     EXPECT_EQ(det["unconfirmed_starts"].get<int>(), d.unconfirmed_starts);
+    EXPECT_EQ(det["closing_starts"].get<int>(), d.closing_starts);
     EXPECT_EQ(det["refused_points"].get<int>(), d.refused_points);
     frames_with_outliers += outliers > 0;
     cut_points += static_cast<int>(det["new_cut_points"].size());

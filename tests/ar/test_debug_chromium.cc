@@ -98,8 +98,9 @@ TEST(DebugViewerInBrowser, StepsFramesTogglesLayersAndShowsAFeatureHistory) {
   // Frame 3's rejected clusters as the record counts them.
   const nlohmann::json& det = rec["detection"];
   std::string rejected;
-  for (const char* key : {"lone_features", "one_sided_clusters", "star_starts",
-                          "unconfirmed_starts", "refused_points", "refused_segments"})
+  for (const char* key :
+       {"lone_features", "one_sided_clusters", "star_starts", "unconfirmed_starts",
+        "closing_starts", "refused_points", "refused_segments"})
     rejected += (rejected.empty() ? "" : " / ") + std::to_string(det[key].get<int>());
   EXPECT_EQ(r["rejected_row"], rejected);
   for (const char* layer : {"pairs", "mesh"}) {

@@ -211,6 +211,12 @@ TEST(CutDetectorOptions, CheckNamesTheField) {
   o.min_opening_balance = 1.5;
   expect_named(o, "min_opening_balance");
   o = {};
+  o.closing_window_frames = -1;
+  expect_named(o, "closing_window_frames");
+  o = {};
+  o.max_closing_fraction = -0.1;
+  expect_named(o, "max_closing_fraction");
+  o = {};
   o.bridge_radius_factor = -1.0;
   expect_named(o, "bridge_radius_factor");
   o = {};
@@ -1119,6 +1125,45 @@ TEST(CutDetector, OneSidedOpeningGivesNoCutPoint) {
   EXPECT_EQ(run.one_sided, 0);
   EXPECT_NEAR(run.polyline[0].initial_position_mm.x(), 80.0, 3.0);
   EXPECT_NEAR(run.polyline[0].initial_position_mm.y(), 0.0, 1.0);
+}
+
+// Lips around x = 80 mm (OpenRegion's) `amp(t)` apart in the targets over 17 frames, amp going
+// linearly from `from_mm` (frames 0-5) to `to_mm` (frame 16). In frames 0-5 the model matches
+// the targets (nothing to detect); from frame 6 it has the lips shut (StretchedModel). Then every
+// pair across the lips opens (its targets are farther apart than its model points) on both
+// sides, as across a cut; whether their targets separate or approach each other over the last
+// frames is what differs. Returns the cut points inserted; *closing the closing starts counted.
+int CutPointsOfLips(double from_mm, double to_mm, int window, int* closing) {
+  const FeatureGrid g = MakeGrid();
+  CutDetectorOptions o;
+  o.closing_window_frames = window;
+  CutDetector detector(o);
+  detector.Initialize(g.p0, g.ids);
+  std::mt19937 rng(8);
+  DetectionResult r;
+  int points = 0;
+  *closing = 0;
+  for (int t = 0; t <= 16; ++t) {
+    const double amp = t <= 5 ? from_mm : from_mm + (to_mm - from_mm) * (t - 5) / 11.0;
+    const RowMatX3d target = OpenRegion(g, 80.0, amp / 2, amp / 2, &rng);
+    detector.Update(MakeFrame(g, target, t <= 5 ? target : StretchedModel(g)), &r);
+    points += static_cast<int>(r.new_cut_points.size());
+    *closing += r.closing_starts;
+  }
+  return points;
+}
+
+TEST(CutDetector, ClosingClustersStartNoCut) {
+  int closing = 0;
+  // Lips that close (6 -> 2 mm) while the model has them shut: no cut with the test ...
+  EXPECT_EQ(CutPointsOfLips(6.0, 2.0, 5, &closing), 0);
+  EXPECT_GE(closing, 1);
+  // ... one without it (0 frames: the thesis's test) ...
+  EXPECT_GE(CutPointsOfLips(6.0, 2.0, 0, &closing), 1);
+  EXPECT_EQ(closing, 0);
+  // ... and lips that open (0 -> 4 mm) are cut with it.
+  EXPECT_GE(CutPointsOfLips(0.0, 4.0, 5, &closing), 1);
+  EXPECT_EQ(closing, 0);
 }
 
 // Polyline x-coordinates (frame 0) after cuts opening locally, one per frame, at `centres`.

@@ -25,8 +25,8 @@ cv::Mat PaddedFloatView(const cv::Mat& image, int pad) {
 }
 
 // The image whose pixel at centre + L (x - centre) + shift is texture(x), times gain plus bias.
-cv::Mat Warped(const cv::Mat& texture, cv::Point2f centre, const cv::Matx22d& l,
-               cv::Point2f shift, double gain, double bias) {
+cv::Mat Warped(const cv::Mat& texture, cv::Point2f centre, const cv::Matx22d& l, cv::Point2f shift,
+               double gain, double bias) {
   cv::Matx23d m(l(0, 0), l(0, 1), 0, l(1, 0), l(1, 1), 0);
   const cv::Vec2d c(centre.x, centre.y);
   const cv::Vec2d t = c - l * c + cv::Vec2d(shift.x, shift.y);
@@ -44,13 +44,12 @@ TEST(AffineRefine, RecoversAWarpWithGainAndBiasFromATranslatedStart) {
   const cv::Mat target = PaddedFloatView(Warped(texture, centre, l, shift, 1.2, -12), 32);
   DriftCorrectionOptions options;
   AffineAnchor anchor;
-  ASSERT_TRUE(MakeAffineAnchor(PaddedFloatView(texture, 32), centre, options, 1e-4,
-                               cv::Mat(), &anchor));
+  ASSERT_TRUE(
+      MakeAffineAnchor(PaddedFloatView(texture, 32), centre, options, 1e-4, cv::Mat(), &anchor));
   // Tracking put the feature 1.1 px off, with no idea of the shape change.
   const cv::Point2f truth = centre + shift;
-  const AffineRefinement r =
-      RefineAffine(anchor, target, {truth + cv::Point2f(0.8f, -0.75f), cv::Matx22f::eye()},
-                   options);
+  const AffineRefinement r = RefineAffine(
+      anchor, target, {truth + cv::Point2f(0.8f, -0.75f), cv::Matx22f::eye()}, options);
   EXPECT_TRUE(r.accepted);
   EXPECT_GT(r.correlation, 0.99);
   EXPECT_LT(cv::norm(r.warp.centre - truth), 0.05) << r.warp.centre;

@@ -13,6 +13,7 @@
 
 #include "core/error.h"
 #include "test_util.h"
+#include "tracking/affine_refine.h"
 #include "tracking/tracker.h"
 #include "tracking/video_io.h"
 
@@ -29,8 +30,22 @@ constexpr const char* kClip = "real/pulling_tissue.mp4";
 const std::vector<cv::Point> kGrasperInFrame0 = {{0, 222},   {136, 220}, {140, 248}, {190, 290},
                                                  {190, 306}, {120, 314}, {0, 324}};
 
-TEST(RealClip, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
+// The tracker with and without its drift correction (DriftCorrectionOptions), with the figures
+// each is guarded by (measured values in the comments below).
+struct ClipCase {
+  const char* name;
+  bool drift_correction;
+  double min_survivors;        // fraction of the frame-0 features tracked at the end
+  double max_median, max_p90;  // of the survivors' round trip, px
+};
+
+class RealClipTracking : public ::testing::TestWithParam<ClipCase> {};
+
+TEST_P(RealClipTracking, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
   ARREG_REQUIRE_SHARED(path, kClip);
+  const ClipCase& c = GetParam();
+  FeatureTrackerOptions options;
+  options.drift.enabled = c.drift_correction;
   VideoReader reader;
   reader.Open(path);
   ASSERT_EQ(reader.width(), 640);
@@ -39,13 +54,13 @@ TEST(RealClip, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
   ASSERT_TRUE(reader.Read(&frame));
   std::vector<cv::Mat> grey(1);
   cv::cvtColor(frame, grey[0], cv::COLOR_BGR2GRAY);
-  FeatureTracker tracker;
+  FeatureTracker tracker(options);
   const TrackFrameSummary first = tracker.Initialize(frame);
   EXPECT_GE(first.num_active, 200);
   // Re-identification's SURF only around the predictions (the default) finds
   // what SURF on the whole frame finds: the same features come back, at the
   // same places.
-  FeatureTrackerOptions whole_frame_options;
+  FeatureTrackerOptions whole_frame_options = options;
   whole_frame_options.reidentify.search_near_predictions = false;
   FeatureTracker whole_frame(whole_frame_options);
   whole_frame.Initialize(frame);
@@ -90,19 +105,23 @@ TEST(RealClip, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
               first.num_active, still_tracked, 100.0 * still_tracked / first.num_active, on_grasper,
               grasper_dropped);
   EXPECT_GE(on_grasper, 10) << "the grasper is textured; SURF finds points on it";
-  // The issue asks for >= 50 % survivors. NOT MET (15.1 %, see docs/tracking.md,
-  // "Real clip"): the grasper sweeps over the left tissue and stretches and covers
-  // the upper tissue, the blue instrument comes down over the lower right tissue
-  // and stays; lost features come back only by re-identification, which the
-  // deformation during the occlusion limits (tracked backwards from the last
-  // frame, 11.7 % of its features reach frame 0). Guarded here is what holds,
-  // so that a regression shows:
-  EXPECT_GE(still_tracked, 0.145 * first.num_active);
+  // The issue asks for >= 50 % survivors. NOT MET (15.1 % without the drift
+  // correction, 14.2 % with it; see docs/tracking.md, "Real clip"): the grasper
+  // sweeps over the left tissue and stretches and covers the upper tissue, the blue
+  // instrument comes down over the lower right tissue and stays; lost features come
+  // back only by re-identification, which the deformation during the occlusion
+  // limits (tracked backwards from the last frame, 11.7 % of its features reach
+  // frame 0). Guarded here is what holds, so that a regression shows:
+  EXPECT_GE(still_tracked, c.min_survivors * first.num_active);
 
-  // The survivors have not drifted: followed back from the last frame (LK
-  // frame by frame, independent of the tracker's own chain) to where they were
-  // last acquired -- detected in frame 0, or re-identified after a loss (a
-  // chain through the occlusion cannot exist) -- they return to that position.
+  // The survivors have not drifted: followed back from the last frame by a chain
+  // independent of the tracker's -- LK frame by frame, and, when the tracker corrects its
+  // drift, the same correction against the window each survivor shows in the last frame --
+  // to where they were last acquired (detected in frame 0, or re-identified after a loss:
+  // a chain through the occlusion cannot exist), they return to that position. A plain LK
+  // chain back retraces the drift of a plain LK chain forward, so each kind of chain is
+  // checked against its own kind (a plain chain back from the corrected tracks: 1.89 /
+  // 8.80 px median / 90th percentile; docs/tracking.md "Drift correction").
   std::vector<cv::Point2f> from_end, at_start;
   std::vector<int> start_frame;
   int reidentified = 0;
@@ -120,14 +139,39 @@ TEST(RealClip, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
   std::printf("survivors %zu, of them re-identified after a loss %d\n", from_end.size(),
               reidentified);
   ASSERT_FALSE(from_end.empty());
+  const DriftCorrectionOptions& drift = options.drift;
+  auto padded_float = [](const cv::Mat& image) {
+    constexpr int kPad = 64;
+    cv::Mat padded, f;
+    cv::copyMakeBorder(image, padded, kPad, kPad, kPad, kPad, cv::BORDER_REFLECT_101);
+    padded.convertTo(f, CV_32F);
+    return cv::Mat(f, cv::Rect(kPad, kPad, image.cols, image.rows));
+  };
+  std::vector<AffineAnchor> anchors(from_end.size());
+  std::vector<AffineWarp> warps(from_end.size());
+  if (drift.enabled) {
+    const cv::Mat last = padded_float(grey[frames - 1]);
+    for (size_t i = 0; i < from_end.size(); ++i)
+      MakeAffineAnchor(last, from_end[i], drift, options.lk.min_eigen_threshold, cv::Mat(),
+                       &anchors[i]);
+  }
   std::vector<uint8_t> ok(from_end.size(), 1);
   std::vector<cv::Point2f> returned = from_end;
-  for (int f = frames - 1; f > 0; --f) {
+  for (int f = frames - 1, steps = 1; f > 0; --f, ++steps) {
     std::vector<cv::Point2f> next;
     std::vector<uint8_t> status;
     std::vector<float> error;
     cv::calcOpticalFlowPyrLK(grey[f], grey[f - 1], from_end, next, status, error, cv::Size(21, 21),
                              3);
+    if (drift.enabled && steps % drift.every_frames == 0) {
+      const cv::Mat image = padded_float(grey[f - 1]);
+      for (size_t i = 0; i < next.size(); ++i) {
+        if (!status[i] || anchors[i].side == 0) continue;
+        warps[i].centre = next[i];
+        const AffineRefinement r = RefineAffine(anchors[i], image, warps[i], drift);
+        if (r.accepted) next[i] = r.warp.centre, warps[i] = r.warp;
+      }
+    }
     for (size_t i = 0; i < ok.size(); ++i) {
       if (f <= start_frame[i]) continue;  // arrived already
       ok[i] &= status[i];
@@ -143,10 +187,20 @@ TEST(RealClip, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
   const double median = round_trip_px[round_trip_px.size() / 2];
   const double p90 = round_trip_px[round_trip_px.size() * 9 / 10];
   std::printf("survivors' round trip: median %.2f px, 90th percentile %.2f px\n", median, p90);
-  // Measured 1.12 and 4.11 px.
-  EXPECT_LT(median, 1.5);
-  EXPECT_LT(p90, 5.0);
+  EXPECT_LT(median, c.max_median);
+  EXPECT_LT(p90, c.max_p90);
 }
+
+// Measured: without the drift correction 15.1 % survivors, round trip 1.12 / 4.11 px (median /
+// 90th percentile); with it (the default) 14.2 %, 1.92 / 6.53 px. The clip has no ground
+// truth to tell which tracks are right (docs/tracking.md "Drift correction": on the synthetic
+// scenes, where it has, the corrected tracks are 5-7 times closer to the truth).
+INSTANTIATE_TEST_SUITE_P(Tracker, RealClipTracking,
+                         ::testing::Values(ClipCase{"LucasKanadeOnly", false, 0.145, 1.5, 5.0},
+                                           ClipCase{"DriftCorrected", true, 0.135, 2.5, 8.0}),
+                         [](const ::testing::TestParamInfo<ClipCase>& info) {
+                           return std::string(info.param.name);
+                         });
 
 TEST(RealClip, SkippingTheLoopFilterChangesTheFramesByLessThanOneGreyLevel) {
   ARREG_REQUIRE_SHARED(path, kClip);

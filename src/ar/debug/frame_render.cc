@@ -237,10 +237,11 @@ void DrawDebugLayers(const nlohmann::json& record, const nlohmann::json& topolog
       // Clusters rejected this frame (records of older runs lack some counters: 0).
       const auto count = [&](const char* key) { return det.value(key, 0.0); };
       Text(&img,
-           Format("rejected: sliding %.0f  one-sided %.0f  star %.0f  unconfirmed %.0f  no growth "
-                  "%.0f  split %.0f",
+           Format("rejected: sliding %.0f  one-sided %.0f  star %.0f  unconfirmed %.0f  closing "
+                  "%.0f  no growth %.0f  split %.0f",
                   count("lone_features"), count("one_sided_clusters"), count("star_starts"),
-                  count("unconfirmed_starts"), count("refused_points"), count("refused_segments")),
+                  count("unconfirmed_starts"), count("closing_starts"), count("refused_points"),
+                  count("refused_segments")),
            row++);
     }
     Text(&img, Format("total %.1f ms", record.at("ms").at("total").get<double>()), row++);

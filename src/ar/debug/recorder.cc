@@ -240,6 +240,7 @@ nlohmann::json MakeFrameRecord(const pipeline::FrameState& frame, const PinholeC
                  {"one_sided_clusters", d.one_sided_clusters},
                  {"star_starts", d.star_starts},
                  {"unconfirmed_starts", d.unconfirmed_starts},
+                 {"closing_starts", d.closing_starts},
                  {"refused_points", d.refused_points},
                  {"refused_segments", d.refused_segments},
                  {"new_cut_points", std::move(new_points)},

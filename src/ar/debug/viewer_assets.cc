@@ -293,9 +293,9 @@ const char kViewerJs[] = R"JS('use strict';
         ['pairs removed (cut / death) / bridged', det.pairs_removed_by_cut + ' / ' + det.pairs_removed_by_death + ' / ' + det.pairs_bridged],
         ['growth probe pairs / outliers', det.probe_pairs + ' / ' + det.probe_outliers +
           (det.new_cut_points.some((c) => c.probe) ? ' (point inserted)' : '')],
-        ['clusters rejected: sliding star / one-sided / star start / unconfirmed start / no growth / splitting',
+        ['clusters rejected: sliding star / one-sided / star start / unconfirmed start / closing start / no growth / splitting',
           [det.lone_features, det.one_sided_clusters, det.star_starts, det.unconfirmed_starts,
-            det.refused_points, det.refused_segments].map((v) => (v === undefined ? '-' : v)).join(' / ')]);
+            det.closing_starts, det.refused_points, det.refused_segments].map((v) => (v === undefined ? '-' : v)).join(' / ')]);
     } else {
       rows.push(['cut detection', 'off']);
     }

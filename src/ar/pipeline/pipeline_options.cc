@@ -193,6 +193,8 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("reject_lone_features", &o->detector.reject_lone_features);
   r.Optional("reject_star_starts", &o->detector.reject_star_starts);
   r.Optional("confirm_starts_with_model_measure", &o->detector.confirm_starts_with_model_measure);
+  r.Optional("closing_window_frames", &o->detector.closing_window_frames);
+  r.Optional("max_closing_fraction", &o->detector.max_closing_fraction);
   r.Optional("outlier_factor", &o->detector.outlier_factor);
   r.Optional("min_outliers", &o->detector.min_outliers);
   r.Optional("cut_point_radius_mm", &o->detector.cut_point_radius_mm);
@@ -319,6 +321,8 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"reject_lone_features", o.cutting.detector.reject_lone_features},
       {"reject_star_starts", o.cutting.detector.reject_star_starts},
       {"confirm_starts_with_model_measure", o.cutting.detector.confirm_starts_with_model_measure},
+      {"closing_window_frames", o.cutting.detector.closing_window_frames},
+      {"max_closing_fraction", o.cutting.detector.max_closing_fraction},
       {"outlier_factor", o.cutting.detector.outlier_factor},
       {"min_outliers", o.cutting.detector.min_outliers},
       {"cut_point_radius_mm", o.cutting.detector.cut_point_radius_mm},
