@@ -1036,7 +1036,13 @@ TrackFrameSummary FeatureTracker::Track(const cv::Mat& image, const cv::Mat& roi
     if (options_.drift.enabled && frame_ % options_.drift.every_frames == 0) CorrectDrift();
     if (options_.appearance.enabled && frame_ % options_.appearance.every_frames == 0)
       CheckAppearance();
-    for (const FeatureState& f : current_) store_.Record(f.id, {frame_, f.position_px, f.status});
+    for (const FeatureState& f : current_) {
+      store_.Record(f.id, {frame_, f.position_px, f.status});
+      // A lost feature's anchor is never used again (one found again is anchored anew where it
+      // is found): free it, so that a long video does not keep one per feature ever seen.
+      if (f.status != TrackStatus::kTracked && f.id < static_cast<int>(anchors_.size()))
+        anchors_[f.id] = AffineAnchor();
+    }
   }
   if (options_.reidentify.enabled) {
     RememberLost();
