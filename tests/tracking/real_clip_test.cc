@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <ostream>
 #include <random>
 
 #include <opencv2/imgproc.hpp>
@@ -38,6 +39,8 @@ struct ClipCase {
   double min_survivors;        // fraction of the frame-0 features tracked at the end
   double max_median, max_p90;  // of the survivors' round trip, px
 };
+
+void PrintTo(const ClipCase& c, std::ostream* os) { *os << c.name; }
 
 class RealClipTracking : public ::testing::TestWithParam<ClipCase> {};
 
