@@ -4,7 +4,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <cstdlib>
 #include <iterator>
 #include <string>
 #include <utility>
@@ -452,7 +451,7 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
         DropClusterFromCandidates();
         continue;
       }
-      if (options_.closing_window_frames > 0 && (!grows || std::getenv("ARREG_CLOSING_ALL")) &&
+      if (options_.closing_window_frames > 0 && !grows &&
           ClusterDistanceChange(*result) < -options_.max_closing_fraction) {
         ++result->closing_starts;
         DropClusterFromCandidates();

@@ -759,26 +759,23 @@ void FeatureTracker::CheckAppearance() {
 
 void FeatureTracker::Anchor(int id, cv::Point2f position_px) {
   if (!options_.drift.enabled) return;
-  if (static_cast<int>(anchors_.size()) <= id) {
-    anchors_.resize(id + 1);
-    anchor_linear_.resize(id + 1);
-  }
-  anchor_linear_[id] = cv::Matx22f::eye();
-  if (!MakeAffineAnchor(pyramid_.float_image(0), position_px, options_.drift,
-                        options_.lk.min_eigen_threshold, roi_, &anchors_[id]))
-    anchors_[id].side = 0;
+  if (static_cast<int>(anchors_.size()) <= id) anchors_.resize(id + 1);
+  DriftAnchor& anchor = anchors_[id];
+  anchor.linear = cv::Matx22f::eye();
+  MakeAffineAnchor(pyramid_.float_image(0), position_px, options_.drift,
+                   options_.lk.min_eigen_threshold, roi_, &anchor.window);
 }
 
 void FeatureTracker::CorrectDrift() {
   for (FeatureState& f : current_) {
-    if (f.status != TrackStatus::kTracked || anchors_[f.id].side == 0) continue;
-    const AffineRefinement refined =
-        RefineAffine(anchors_[f.id], pyramid_.float_image(0), {f.position_px, anchor_linear_[f.id]},
-                     options_.drift);
+    DriftAnchor& anchor = anchors_[f.id];
+    if (f.status != TrackStatus::kTracked || anchor.window.side == 0) continue;
+    const AffineRefinement refined = RefineAffine(anchor.window, pyramid_.float_image(0),
+                                                  {f.position_px, anchor.linear}, options_.drift);
     if (!refined.accepted) continue;
     f.displacement_px += refined.warp.centre - f.position_px;
     f.position_px = refined.warp.centre;
-    anchor_linear_[f.id] = refined.warp.linear;
+    anchor.linear = refined.warp.linear;
   }
 }
 
@@ -941,7 +938,6 @@ TrackFrameSummary FeatureTracker::Initialize(const cv::Mat& image, const cv::Mat
   lost_.clear();
   acquired_look_.clear();
   anchors_.clear();
-  anchor_linear_.clear();
   reference_descriptors_.release();
   round_frame_ = -1;
   PrepareFrame(image, roi_mask);
@@ -1041,7 +1037,7 @@ TrackFrameSummary FeatureTracker::Track(const cv::Mat& image, const cv::Mat& roi
       // A lost feature's anchor is never used again (one found again is anchored anew where it
       // is found): free it, so that a long video does not keep one per feature ever seen.
       if (f.status != TrackStatus::kTracked && f.id < static_cast<int>(anchors_.size()))
-        anchors_[f.id] = AffineAnchor();
+        anchors_[f.id] = DriftAnchor();
     }
   }
   if (options_.reidentify.enabled) {

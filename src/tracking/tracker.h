@@ -320,11 +320,14 @@ class FeatureTracker {
   // with their look at acquisition kLostAppearance.
   void CheckAppearance();
   // Per id: its window in the frame where it was detected or last re-identified,
-  // as an affine anchor (DriftCorrectionOptions), and the warp of its last
-  // accepted refinement; anchor side 0 when the window could not anchor.
-  std::vector<AffineAnchor> anchors_;
+  // as an affine anchor (DriftCorrectionOptions; side 0 when the window could not
+  // anchor or the feature is lost), and the linear part of its last accepted warp.
+  struct DriftAnchor {
+    AffineAnchor window;
+    cv::Matx22f linear = cv::Matx22f::eye();
+  };
+  std::vector<DriftAnchor> anchors_;
   cv::Mat roi_;  // the current frame's ROI mask (empty: the whole image)
-  std::vector<cv::Matx22f> anchor_linear_;
   // Anchors feature `id` at `position_px` in the current frame.
   void Anchor(int id, cv::Point2f position_px);
   // Moves the tracked features of current_ to where their anchors align.

@@ -133,18 +133,23 @@ TEST(EndToEnd, BandStretchStarAtTheStemCornerStartsNoCut) {
 // The model-regularised measure has no start there, so with conservative starts
 // (cutting.confirm_starts_with_model_measure, opt-in) the start is not confirmed: no event.
 // As for seed 24, on the tracks of frame-to-frame LK: the drift-corrected ones start nothing.
-// Per frame, the starts refused as unconfirmed: each is a cluster of at least one outlier, and
-// the clusters of a frame are disjoint, so a frame never counts more than its outliers.
-class UnconfirmedStartsWatcher : public pipeline::FrameObserver {
+// Per frame, the starts one of the detector's tests refused (`counter`, e.g. unconfirmed_starts):
+// each is a cluster of at least one outlier, and the clusters of a frame are disjoint, so a frame
+// never counts more than its outliers.
+class RejectedStartsWatcher : public pipeline::FrameObserver {
  public:
+  explicit RejectedStartsWatcher(int cutting::DetectionResult::*counter) : counter_(counter) {}
   void OnFrame(const pipeline::FrameState& frame) override {
     if (frame.detection == nullptr) return;
-    const int count = frame.detection->unconfirmed_starts;
+    const int count = frame.detection->*counter_;
     total += count;
     if (count > static_cast<int>(frame.detection->outliers.size())) ++frames_over_outliers;
   }
   int total = 0;
   int frames_over_outliers = 0;
+
+ private:
+  int cutting::DetectionResult::*counter_;
 };
 
 TEST(EndToEnd, BandStretchJunctionStartUnconfirmedByTheModelMeasure) {
@@ -156,7 +161,7 @@ TEST(EndToEnd, BandStretchJunctionStartUnconfirmedByTheModelMeasure) {
   const pipeline::RunSummary by_default = RunScene(scene, options);
   options.cutting.detector.confirm_starts_with_model_measure = true;
   pipeline::RegistrationPipeline pipe(scene, options);
-  UnconfirmedStartsWatcher watcher;
+  RejectedStartsWatcher watcher(&cutting::DetectionResult::unconfirmed_starts);
   pipe.AddObserver(&watcher);
   const pipeline::RunSummary conservative = pipe.Run(pipeline::RunOptions());
   std::printf(
@@ -175,21 +180,13 @@ TEST(EndToEnd, BandStretchJunctionStartUnconfirmedByTheModelMeasure) {
 // sides; but its pairs are shrinking, as the tissue relaxes, and a cut opens its pairs. A
 // cluster whose pairs close starts no cut (cutting.closing_window_frames): no event; without the
 // rule the start grows into an event.
-class ClosingStartsWatcher : public pipeline::FrameObserver {
- public:
-  void OnFrame(const pipeline::FrameState& frame) override {
-    if (frame.detection != nullptr) total += frame.detection->closing_starts;
-  }
-  int total = 0;
-};
-
 TEST(EndToEnd, BandStretchReleaseClosesTheStemsPairsAndStartsNoCut) {
   const Scene scene = BandStretchScene(30);
   pipeline::PipelineOptions options = pipeline::ReadPipelineOptions(scene);
   ASSERT_TRUE(options.tracking.drift.enabled);
   ASSERT_GT(options.cutting.detector.closing_window_frames, 0);
   pipeline::RegistrationPipeline pipe(scene, options);
-  ClosingStartsWatcher watcher;
+  RejectedStartsWatcher watcher(&cutting::DetectionResult::closing_starts);
   pipe.AddObserver(&watcher);
   const pipeline::RunSummary summary = pipe.Run(pipeline::RunOptions());
   options.cutting.detector.closing_window_frames = 0;

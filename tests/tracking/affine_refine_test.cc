@@ -15,15 +15,6 @@
 namespace arreg {
 namespace {
 
-// A CV_32F view of `image` padded by `pad` reflected pixels, as LucasKanadePyramid levels are.
-cv::Mat PaddedFloatView(const cv::Mat& image, int pad) {
-  cv::Mat padded;
-  cv::copyMakeBorder(image, padded, pad, pad, pad, pad, cv::BORDER_REFLECT_101);
-  cv::Mat f;
-  padded.convertTo(f, CV_32F);
-  return f(cv::Rect(pad, pad, image.cols, image.rows));
-}
-
 // The image whose pixel at centre + L (x - centre) + shift is texture(x), times gain plus bias.
 cv::Mat Warped(const cv::Mat& texture, cv::Point2f centre, const cv::Matx22d& l, cv::Point2f shift,
                double gain, double bias) {
@@ -41,11 +32,11 @@ TEST(AffineRefine, RecoversAWarpWithGainAndBiasFromATranslatedStart) {
   const cv::Mat texture = testing::BandLimitedTexture(240, 240, 3, 110, 30);
   const cv::Point2f centre(120.3f, 118.6f), shift(2.4f, -1.3f);
   const cv::Matx22d l(1.15, 0.10, -0.08, 0.88);
-  const cv::Mat target = PaddedFloatView(Warped(texture, centre, l, shift, 1.2, -12), 32);
+  const cv::Mat target = testing::PaddedFloatView(Warped(texture, centre, l, shift, 1.2, -12), 32);
   DriftCorrectionOptions options;
   AffineAnchor anchor;
-  ASSERT_TRUE(
-      MakeAffineAnchor(PaddedFloatView(texture, 32), centre, options, 1e-4, cv::Mat(), &anchor));
+  ASSERT_TRUE(MakeAffineAnchor(testing::PaddedFloatView(texture, 32), centre, options, 1e-4,
+                               cv::Mat(), &anchor));
   // Tracking put the feature 1.1 px off, with no idea of the shape change.
   const cv::Point2f truth = centre + shift;
   const AffineRefinement r = RefineAffine(
@@ -59,7 +50,7 @@ TEST(AffineRefine, RecoversAWarpWithGainAndBiasFromATranslatedStart) {
 
 TEST(AffineRefine, ChecksRejectFarMovesFlatWindowsAndOtherTexture) {
   const cv::Mat texture = testing::BandLimitedTexture(240, 240, 4, 110, 30);
-  const cv::Mat image = PaddedFloatView(texture, 32);
+  const cv::Mat image = testing::PaddedFloatView(texture, 32);
   DriftCorrectionOptions options;
   AffineAnchor anchor;
   const cv::Point2f p(100, 110);
@@ -70,11 +61,12 @@ TEST(AffineRefine, ChecksRejectFarMovesFlatWindowsAndOtherTexture) {
   EXPECT_LT(cv::norm(far.warp.centre - p), 0.05);
   EXPECT_FALSE(far.accepted);
   // A flat window cannot anchor.
-  const cv::Mat flat = PaddedFloatView(cv::Mat(240, 240, CV_8U, cv::Scalar(90)), 32);
+  const cv::Mat flat = testing::PaddedFloatView(cv::Mat(240, 240, CV_8U, cv::Scalar(90)), 32);
   AffineAnchor flat_anchor;
   EXPECT_FALSE(MakeAffineAnchor(flat, p, options, 1e-4, cv::Mat(), &flat_anchor));
   // Other texture does not correlate.
-  const cv::Mat other = PaddedFloatView(testing::BandLimitedTexture(240, 240, 5, 110, 30), 32);
+  const cv::Mat other =
+      testing::PaddedFloatView(testing::BandLimitedTexture(240, 240, 5, 110, 30), 32);
   EXPECT_FALSE(RefineAffine(anchor, other, {p}, DriftCorrectionOptions{}).accepted);
   // Windows leaving the readable area are refused, not read out of bounds.
   AffineAnchor outside;

@@ -13,6 +13,7 @@
 #include <opencv2/video/tracking.hpp>
 
 #include "core/error.h"
+#include "test_images.h"
 #include "test_util.h"
 #include "tracking/affine_refine.h"
 #include "tracking/tracker.h"
@@ -143,17 +144,11 @@ TEST_P(RealClipTracking, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
               reidentified);
   ASSERT_FALSE(from_end.empty());
   const DriftCorrectionOptions& drift = options.drift;
-  auto padded_float = [](const cv::Mat& image) {
-    constexpr int kPad = 64;
-    cv::Mat padded, f;
-    cv::copyMakeBorder(image, padded, kPad, kPad, kPad, kPad, cv::BORDER_REFLECT_101);
-    padded.convertTo(f, CV_32F);
-    return cv::Mat(f, cv::Rect(kPad, kPad, image.cols, image.rows));
-  };
+  constexpr int kPad = 64;
   std::vector<AffineAnchor> anchors(from_end.size());
   std::vector<AffineWarp> warps(from_end.size());
   if (drift.enabled) {
-    const cv::Mat last = padded_float(grey[frames - 1]);
+    const cv::Mat last = testing::PaddedFloatView(grey[frames - 1], kPad);
     for (size_t i = 0; i < from_end.size(); ++i)
       MakeAffineAnchor(last, from_end[i], drift, options.lk.min_eigen_threshold, cv::Mat(),
                        &anchors[i]);
@@ -167,7 +162,7 @@ TEST_P(RealClipTracking, SurfFeaturesAreTrackedAndTheGrasperIsDropped) {
     cv::calcOpticalFlowPyrLK(grey[f], grey[f - 1], from_end, next, status, error, cv::Size(21, 21),
                              3);
     if (drift.enabled && steps % drift.every_frames == 0) {
-      const cv::Mat image = padded_float(grey[f - 1]);
+      const cv::Mat image = testing::PaddedFloatView(grey[f - 1], kPad);
       for (size_t i = 0; i < next.size(); ++i) {
         if (!status[i] || anchors[i].side == 0) continue;
         warps[i].centre = next[i];

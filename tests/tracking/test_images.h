@@ -29,4 +29,13 @@ inline cv::Mat BandLimitedTexture(int rows, int cols, unsigned seed, double mean
   return out;
 }
 
+// A CV_32F view of `image` padded by `pad` reflected pixels, as LucasKanadePyramid levels are
+// (what MakeAffineAnchor and RefineAffine read).
+inline cv::Mat PaddedFloatView(const cv::Mat& image, int pad) {
+  cv::Mat padded, f;
+  cv::copyMakeBorder(image, padded, pad, pad, pad, pad, cv::BORDER_REFLECT_101);
+  padded.convertTo(f, CV_32F);
+  return f(cv::Rect(pad, pad, image.cols, image.rows));
+}
+
 }  // namespace arreg::testing
