@@ -101,6 +101,8 @@ void CutDetectorOptions::Check() const {
                     "must be > 0, got ", probe_pair_length_factor);
   ARREG_CHECK_INPUT(positive(probe_outlier_factor), "", "cut_detector.probe_outlier_factor",
                     "must be > 0, got ", probe_outlier_factor);
+  ARREG_CHECK_INPUT(positive(probe_max_lead_factor), "", "cut_detector.probe_max_lead_factor",
+                    "must be > 0, got ", probe_max_lead_factor);
 }
 
 CutDetector::CutDetector(const CutDetectorOptions& options) : given_(options), options_(options) {
@@ -726,7 +728,8 @@ void CutDetector::BuildProbe(bool front) {
         crosses_cut = segments_cross(la, lb, cut_segments[k].first, cut_segments[k].second);
       if (crosses_cut) continue;
       const int first = std::min(a, b), second = std::max(a, b);
-      probe.pairs.push_back({first, second, first == a ? s : 1.0 - s, 1.0 / std::sqrt(length2)});
+      probe.pairs.push_back({first, second, first == a ? s : 1.0 - s, 1.0 / std::sqrt(length2),
+                             extension + crossing.x()});
     }
 }
 
@@ -765,6 +768,14 @@ bool CutDetector::ProbeGrowth(bool front, DetectionResult* result, CutPoint* poi
                             probe_outliers_.end());
   }
   result->probe_outliers += static_cast<int>(probe_outliers_.size());
+  // A tear's continuation starts at its tip: outliers found only farther ahead are strain
+  // beyond it (probe_max_lead_factor).
+  double lead = std::numeric_limits<double>::infinity();
+  for (const auto& outlier : probe_outliers_)
+    lead = std::min(lead, probe.pairs[outlier.first].along);
+  if (lead >
+      options_.cut_point_radius_mm + options_.probe_max_lead_factor * options_.neighbour_radius_mm)
+    return false;
   // Across the probe, the point lies at the mu-weighted barycentre of the pairs' midpoints, as
   // for C^t: the pairs that open straddle the tear, so it follows the tear when the probe
   // points off it (the crossings lie on the probe by construction, and an error in its

@@ -234,6 +234,13 @@ struct CutDetectorOptions {
   // reaches 15-30 mean(mu) on the synthetic v-band, against at most 11 for pairs across the
   // uncut band beyond the tear's tip (docs/detection.md). Default 12.
   double probe_outlier_factor = 12.0;
+  // [-] A tear grows from its tip: the probe grows the polyline only when its nearest outlier
+  // crosses it within r_pc + this factor times r_F of the extremity (frame 0), whatever the
+  // extension (a border extension is a guess of how far S reaches, not an observation).
+  // Outliers found only farther ahead are strain beyond the tear's tip that the model does not
+  // follow, not its continuation (band-cut-v seed 4: the band/stem junction, 28-50 mm ahead;
+  // docs/detection.md, "A tear grows from its tip"). Default 1.
+  double probe_max_lead_factor = 1.0;
 
   // Throws arreg::Error naming the offending field.
   void Check() const;
@@ -464,6 +471,7 @@ class CutDetector {
     int second = 0;
     double s = 0.0;
     double inverse_length = 0.0;  // 1 / |p0_first - p0_second|
+    double along = 0.0;           // the crossing's distance from the extremity (frame 0)
   };
   struct Probe {
     // The extremity it was built for (frame 0) and whether it was at the border then.

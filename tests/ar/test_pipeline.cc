@@ -385,13 +385,16 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_DOUBLE_EQ(o.cutting.detector.probe_length_factor, 2.0);
   EXPECT_DOUBLE_EQ(o.cutting.detector.probe_pair_length_factor, 3.0);
   EXPECT_DOUBLE_EQ(o.cutting.detector.probe_outlier_factor, 12.0);
+  EXPECT_DOUBLE_EQ(o.cutting.detector.probe_max_lead_factor, 1.0);
   scene.cutting = {{"probe_length_factor", 0.0},
                    {"probe_pair_length_factor", 2.5},
-                   {"probe_outlier_factor", 15.0}};
+                   {"probe_outlier_factor", 15.0},
+                   {"probe_max_lead_factor", 1.5}};
   const PipelineOptions p = ReadPipelineOptions(scene);
   EXPECT_DOUBLE_EQ(p.cutting.detector.probe_length_factor, 0.0);
   EXPECT_DOUBLE_EQ(p.cutting.detector.probe_pair_length_factor, 2.5);
   EXPECT_DOUBLE_EQ(p.cutting.detector.probe_outlier_factor, 15.0);
+  EXPECT_DOUBLE_EQ(p.cutting.detector.probe_max_lead_factor, 1.5);
   scene.cutting = {{"probe_outlier_factor", -1.0}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
   // Session 9: internal structures split and capped, or their crossing triangles deleted.

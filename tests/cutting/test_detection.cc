@@ -86,6 +86,17 @@ struct SeamScenario {
   // wide_loss_mm die likewise: a stretch where the tracker loses both lips too widely for bridges.
   double wide_loss_mm = 0.0;
   double wide_loss_to_mm = 0.0;
+  // Frames run on with the tip at tip_end_mm.
+  int hold_frames = 0;
+  // Between strain_from_mm and strain_to_mm along the seam, beyond the tear's end, the targets
+  // separate smoothly across the seam line by up to strain_mm (half on each side, fading in
+  // over stiffness_mm), growing linearly over the hold frames; the model does not follow. A
+  // strain concentration the coarse model misses, with no tear (band-cut-v's band/stem junction
+  // as the band opens into a V).
+  double strain_from_mm = 0.0;
+  double strain_to_mm = 0.0;
+  double strain_mm = 0.0;
+  double strain_width_mm = 5.0;
 
   // Width [mm] of the gap at arc length `along` when the tip is at `tip`. Behind the start
   // (beyond the border, where the grid's far corners lie) the halves move as at the start.
@@ -127,7 +138,11 @@ SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOp
   const int n = static_cast<int>(g.p0.rows());
   const Eigen::Vector2d normal = s.Normal();
   std::vector<char> alive(n, 1);
-  for (double tip = s.tip_start_mm; tip <= s.tip_end_mm + 1e-9; tip += s.speed_mm) {
+  const double last = s.tip_end_mm + s.hold_frames * s.speed_mm;
+  for (double time = s.tip_start_mm; time <= last + 1e-9; time += s.speed_mm) {
+    const double tip = std::min(time, s.tip_end_mm);
+    const double held =
+        s.hold_frames > 0 ? std::max(0.0, (time - s.tip_end_mm) / (last - s.tip_end_mm)) : 0.0;
     double cut_extent = -std::numeric_limits<double>::infinity();
     for (const Eigen::Vector3d& p : detector.ExtendedPolyline(true))
       cut_extent = std::max(cut_extent, s.Coordinates(p).x());
@@ -137,6 +152,11 @@ SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOp
       const double open = s.Opening(c.x(), tip);
       const double side = c.y() > 0 ? 1.0 : -1.0;
       target.row(r).head<2>() += side * 0.5 * open * normal.transpose();
+      if (c.x() > s.strain_from_mm && c.x() < s.strain_to_mm) {
+        const double strain =
+            held * s.strain_mm * (1.0 - std::exp(-std::abs(c.y()) / s.strain_width_mm));
+        target.row(r).head<2>() += side * 0.5 * strain * normal.transpose();
+      }
       const double follow =
           c.x() <= cut_extent ? 1.0 : 1.0 - std::exp(-std::abs(c.y()) / s.stiffness_mm);
       model.row(r).head<2>() += side * 0.5 * open * follow * normal.transpose();
@@ -231,6 +251,9 @@ TEST(CutDetectorOptions, CheckNamesTheField) {
   o = {};
   o.probe_outlier_factor = std::nan("");
   expect_named(o, "probe_outlier_factor");
+  o = {};
+  o.probe_max_lead_factor = 0.0;
+  expect_named(o, "probe_max_lead_factor");
 }
 
 TEST(CutDetector, NeighbourGraphEqualsBruteForce) {
@@ -701,6 +724,43 @@ TEST(CutDetector, GrowthProbeFollowsATearWhoseLipsAreLost) {
       EXPECT_GT(end, tip_end - 2 * options.cut_point_radius_mm - options.neighbour_radius_mm);
       EXPECT_LT(end, tip_end + 2 * options.cut_point_radius_mm);
     }
+}
+
+// The tear of the probe test to 70 mm, then, over 30 frames, a strain concentration 5-30 mm
+// beyond its end that the model misses (targets up to 12 mm apart across the seam line, no
+// tear; the polyline's last point lies 40-53 mm along, 22-35 mm before it). Long probe pairs
+// across it open as across a tear whose lips are lost, but none of them crosses the probe near
+// the polyline's end: the tear does not reach it. Without the lead limit
+// (probe_max_lead_factor) the probe grows the polyline into it on 4 of the 5 seeds (its
+// extension ends 69-103 mm along); with the default it stops within 2 r_pc of the tear's end
+// on all, as without the strain.
+TEST(CutDetector, GrowthProbeDoesNotJumpAheadOfTheTear) {
+  const FeatureGrid g = MakeGrid();
+  int jumped_without_limit = 0;
+  for (unsigned seed : {1u, 2u, 3u, 4u, 5u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    SeamScenario scenario = LostLipsScenario(seed, 30.0);
+    scenario.tip_end_mm = 70.0;
+    scenario.hold_frames = 30;
+    scenario.strain_from_mm = 75.0;
+    scenario.strain_to_mm = 100.0;
+    scenario.strain_mm = 12.0;
+    CutDetectorOptions probe;
+    probe.bridge_radius_factor = 0.0;
+    const SeamRun run = RunSeam(g, scenario, probe);
+    const CutDetectorOptions& options = run.resolved;
+    ASSERT_GE(run.points.size(), 3u);
+    ExpectPointsFollowTheSeam(scenario, run, 0);
+    const double end = scenario.Coordinates(run.extended_initial.back()).x();
+    EXPECT_LT(end, scenario.tip_end_mm + 2 * options.cut_point_radius_mm);
+
+    probe.probe_max_lead_factor = 100.0;
+    const SeamRun unlimited = RunSeam(g, scenario, probe);
+    if (scenario.Coordinates(unlimited.extended_initial.back()).x() >
+        scenario.tip_end_mm + 2 * options.cut_point_radius_mm)
+      ++jumped_without_limit;
+  }
+  EXPECT_GE(jumped_without_limit, 3) << "the scenario should make the unlimited probe jump";
 }
 
 TEST(CutDetector, ImageOnlyMeasureAlsoFindsTheSeam) {

@@ -212,6 +212,7 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("probe_length_factor", &o->detector.probe_length_factor);
   r.Optional("probe_pair_length_factor", &o->detector.probe_pair_length_factor);
   r.Optional("probe_outlier_factor", &o->detector.probe_outlier_factor);
+  r.Optional("probe_max_lead_factor", &o->detector.probe_max_lead_factor);
   r.Optional("spring_margin_mm", &o->spring_margin_mm);
   r.Optional("extrusion_margin_mm", &o->extrusion_margin_mm);
   r.OptionalChoice("method", {"flips", "bielser"}, &o->method);
@@ -338,6 +339,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"probe_length_factor", o.cutting.detector.probe_length_factor},
       {"probe_pair_length_factor", o.cutting.detector.probe_pair_length_factor},
       {"probe_outlier_factor", o.cutting.detector.probe_outlier_factor},
+      {"probe_max_lead_factor", o.cutting.detector.probe_max_lead_factor},
       {"spring_margin_mm", o.cutting.spring_margin_mm},
       {"extrusion_margin_mm", o.cutting.extrusion_margin_mm},
       {"method", o.cutting.method},
