@@ -33,9 +33,11 @@ struct MechanicsStageOptions {
   // > 0 (`--stiffness`); default 0 (use spring_stiffness_relative).
   double spring_stiffness_n_per_m = 0.0;
   int substeps = 1;  // implicit Euler sub-steps per video frame [count]; default 1
-  // Newton iterations per sub-step: 1 (default) is the thesis' one-step scheme; more iterate
-  // to convergence (newton_tolerance_mm 1e-6).
-  int newton_iterations = 1;
+  // Newton iterations per sub-step: 1 is the thesis' one-step scheme; more iterate towards
+  // convergence (newton_tolerance_mm 1e-6), each with the line search. Default 2: a cut band's
+  // free lips turn by tens of degrees within a frame, and one step of the warped stiffness
+  // leaves them hanging across the opened notch (docs/cutting.md "Session 22").
+  int newton_iterations = 2;
   // Rayleigh damping [1/s] and [s]; negative (default) takes the scene's material values.
   double rayleigh_mass_per_s = -1.0;
   double rayleigh_stiffness_s = -1.0;
