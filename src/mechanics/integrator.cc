@@ -334,7 +334,8 @@ StepSummary ImplicitEulerIntegrator::SubStep(MechanicalState* state,
       Flat(&y) += solution_;
     }
     if (!one_step && summary.last_increment_mm < options_.newton_tolerance_mm) break;
-    if (!one_step && it + 1 == max_it) summary.status = StepStatus::kMaxIterations;
+    if (options_.newton_mode == NewtonMode::kFullNewton && it + 1 == max_it)
+      summary.status = StepStatus::kMaxIterations;
   }
   previous_velocity_ = v0;
   RowMatX3d& v = state->mutable_velocities();

@@ -33,6 +33,10 @@ LinearSolverOptions DefaultStepSolverOptions();
 enum class NewtonMode {
   kOneStep,     // one Newton iteration per (sub)step: the thesis' real-time choice
   kFullNewton,  // iterate until the increment is below newton_tolerance_mm
+  // max_newton_iterations iterations per (sub)step (fewer once the increment is below
+  // newton_tolerance_mm), and the step is complete after them: a fixed budget, as kOneStep is
+  // one iteration, so the status stays kConverged (the registration's default, 2).
+  kFixedIterations,
 };
 
 // Incremental potential solved at every (sub)step of length h, unknown y = x_{n+1}:
@@ -46,7 +50,7 @@ struct ImplicitEulerOptions {
   double dt_s = 1.0 / 30.0;  // time advanced by one Step() (a video frame) in s; default 1/30
   int substeps = 1;          // sub-steps per Step(), each of dt_s / substeps; default 1
   NewtonMode newton_mode = NewtonMode::kOneStep;  // default one Newton step (thesis)
-  int max_newton_iterations = 20;                 // full Newton only; default 20
+  int max_newton_iterations = 20;                 // full Newton, or the fixed budget; default 20
   double newton_tolerance_mm = 1e-7;  // full Newton: stop when max |dy| (mm) is below; default 1e-7
   double rayleigh_mass_alpha = 0.0;   // alpha in 1/s; default 0
   double rayleigh_stiffness_beta = 0.0;  // beta in s; default 0

@@ -204,7 +204,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   mechanics::ImplicitEulerOptions io;
   io.dt_s = 1.0 / fps;
   io.substeps = o.mechanics.substeps;
-  io.newton_mode = o.mechanics.newton_iterations > 1 ? mechanics::NewtonMode::kFullNewton
+  io.newton_mode = o.mechanics.newton_iterations > 1 ? mechanics::NewtonMode::kFixedIterations
                                                      : mechanics::NewtonMode::kOneStep;
   io.max_newton_iterations = o.mechanics.newton_iterations;
   io.newton_tolerance_mm = 1e-6;
