@@ -147,7 +147,9 @@ void CutDetector::Initialize(const RowMatX3d& initial_positions_mm, const std::v
   bridge_candidates_known_.assign(n, 0);
   model_mm_.setZero(n, 3);
   target_mm_.setZero(n, 3);
-  target_history_.assign(options_.closing_window_frames + 1, RowMatX3d());
+  // No history without the closing rule: nothing reads it.
+  target_history_.assign(
+      options_.closing_window_frames > 0 ? options_.closing_window_frames + 1 : 0, RowMatX3d());
 
   // Uniform grid with cell size r_F: neighbours lie in the 27 surrounding cells.
   pairs_.clear();

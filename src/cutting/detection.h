@@ -498,7 +498,8 @@ class CutDetector {
   std::vector<int> row_of_feature_;
   RowMatX3d model_mm_;   // (#F x 3) p^t of the alive features
   RowMatX3d target_mm_;  // (#F x 3) p^1
-  // target_mm_ of the last closing_window_frames + 1 frames, frame f in slot f % size.
+  // target_mm_ of the last closing_window_frames + 1 frames, frame f in slot f % size (none
+  // when closing_window_frames is 0).
   std::vector<RowMatX3d> target_history_;
   std::vector<int> candidates_;
   std::vector<int> cluster_;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <string>
 
@@ -25,22 +26,38 @@ struct RegisteredRun {
   eval::RunEvaluation evaluation;
 };
 
-// Registers the scene (with or without cut handling, default detector parameters) and evaluates
-// it against `gt_dir`.
-RegisteredRun RegisterAndEvaluate(const std::string& scene_path, const std::string& gt_dir,
-                                  const std::string& run_dir, bool topology) {
-  const Scene scene = ReadScene(scene_path);
+// Generates `scenario` (seed, frames) into dir/scene, its ground truth saved every 10th frame
+// and the last (the frames evaluated); returns that folder.
+std::string GenerateScene(const std::string& dir, const char* scenario, int frames, int seed) {
+  synth::SynthOptions so;
+  so.scenario = scenario;
+  so.out_dir = dir + "/scene";
+  so.frames = frames;
+  so.surface_every_k = 10;
+  so.seed = seed;
+  synth::GenerateSyntheticScene(so);
+  return so.out_dir;
+}
+
+// Registers the scene of `scene_dir` with the scene's options, changed by `adjust`, and
+// evaluates it against scene_dir/gt; `watcher`, if any, observes the run.
+RegisteredRun RegisterAndEvaluate(
+    const std::string& scene_dir, const std::string& run_dir,
+    const std::function<void(pipeline::PipelineOptions*)>& adjust = {},
+    pipeline::FrameObserver* watcher = nullptr) {
+  const Scene scene = ReadScene(scene_dir + "/scene.json");
   pipeline::PipelineOptions options = pipeline::ReadPipelineOptions(scene);
-  options.cutting.enabled = topology;
   options.render.enabled = false;  // Dice and Hausdorff use the saved meshes, not the overlay
+  if (adjust) adjust(&options);
   pipeline::RegistrationPipeline pipe(scene, options);
   pipeline::RecordWriter records(run_dir, false);
   pipe.AddObserver(&records);
+  if (watcher) pipe.AddObserver(watcher);
   RegisteredRun out;
   out.summary = pipe.Run(pipeline::RunOptions());
   eval::EvalOptions eo;
   eo.color_maps = false;
-  out.evaluation = eval::EvaluateRun(run_dir, gt_dir, eo);
+  out.evaluation = eval::EvaluateRun(run_dir, scene_dir + "/gt", eo);
   return out;
 }
 
@@ -62,17 +79,10 @@ class EndToEndCut : public ::testing::TestWithParam<CutCase> {};
 TEST_P(EndToEndCut, RegistrationWithAndWithoutTopology) {
   const CutCase& c = GetParam();
   const std::string dir = testing::ScratchDir(std::string("e2e_cuts_") + c.scenario);
-  synth::SynthOptions so;
-  so.scenario = c.scenario;
-  so.out_dir = dir + "/scene";
-  so.frames = c.frames;
-  so.surface_every_k = 10;  // evaluate every 10th frame and the last
-  so.seed = 1;
-  synth::GenerateSyntheticScene(so);
-
-  const std::string scene = dir + "/scene/scene.json", gt = dir + "/scene/gt";
-  const RegisteredRun with = RegisterAndEvaluate(scene, gt, dir + "/with", true);
-  const RegisteredRun without = RegisterAndEvaluate(scene, gt, dir + "/without", false);
+  const std::string scene = GenerateScene(dir, c.scenario, c.frames, 1);
+  const RegisteredRun with = RegisterAndEvaluate(scene, dir + "/with");
+  const RegisteredRun without = RegisterAndEvaluate(
+      scene, dir + "/without", [](pipeline::PipelineOptions* o) { o->cutting.enabled = false; });
   const eval::RunEvaluation& a = with.evaluation;
   const eval::RunEvaluation& b = without.evaluation;
   ASSERT_TRUE(a.surface.has_value() && b.surface.has_value());
@@ -146,39 +156,24 @@ class CutPointWatcher : public pipeline::FrameObserver {
 // the final Dice holds issue 7's 0.95 (docs/detection.md "A tear grows from its tip").
 TEST(EndToEnd, BandCutVTearIsNotGrownIntoTheJunction) {
   const std::string dir = testing::ScratchDir("e2e_cuts_band_cut_v_seed4");
-  synth::SynthOptions so;
-  so.scenario = "band-cut-v";
-  so.out_dir = dir + "/scene";
-  so.frames = 120;
-  so.surface_every_k = 10;
-  so.seed = 4;
-  synth::GenerateSyntheticScene(so);
-  const Scene scene = ReadScene(dir + "/scene/scene.json");
-
-  const auto run = [&](double lead_factor, const std::string& run_dir, CutPointWatcher* watcher) {
-    pipeline::PipelineOptions options = pipeline::ReadPipelineOptions(scene);
-    options.cutting.detector.probe_max_lead_factor = lead_factor;
-    options.render.enabled = false;
-    pipeline::RegistrationPipeline pipe(scene, options);
-    pipeline::RecordWriter records(run_dir, false);
-    pipe.AddObserver(&records);
-    pipe.AddObserver(watcher);
-    return pipe.Run(pipeline::RunOptions());
+  const std::string scene = GenerateScene(dir, "band-cut-v", 120, 4);
+  const auto lead = [](double factor) {
+    return [factor](pipeline::PipelineOptions* o) {
+      o->cutting.detector.probe_max_lead_factor = factor;
+    };
   };
   CutPointWatcher limited, unlimited;
-  const pipeline::RunSummary with = run(1.0, dir + "/limited", &limited);
-  eval::EvalOptions eo;
-  eo.color_maps = false;
-  const eval::RunEvaluation evaluation = eval::EvaluateRun(dir + "/limited", dir + "/scene/gt", eo);
-  run(100.0, dir + "/unlimited", &unlimited);
+  const RegisteredRun with = RegisterAndEvaluate(scene, dir + "/limited", lead(1.0), &limited);
+  RegisterAndEvaluate(scene, dir + "/unlimited", lead(100.0), &unlimited);
   std::printf(
       "band-cut-v seed 4: %d cuts applied, final Dice %.4f, lowest cut point y = %.1f mm "
       "(%.1f mm without the lead limit)\n",
-      with.cuts_applied, evaluation.dice_final, limited.lowest_y_mm, unlimited.lowest_y_mm);
-  EXPECT_GE(with.cuts_applied, 3);
+      with.summary.cuts_applied, with.evaluation.dice_final, limited.lowest_y_mm,
+      unlimited.lowest_y_mm);
+  EXPECT_GE(with.summary.cuts_applied, 3);
   EXPECT_GT(limited.lowest_y_mm, 20.0);
   EXPECT_LT(unlimited.lowest_y_mm, 20.0);
-  EXPECT_GE(evaluation.dice_final, 0.95);
+  EXPECT_GE(with.evaluation.dice_final, 0.95);
 }
 
 // Counts what the detector had to look at: attached features, and per frame the pairs it
