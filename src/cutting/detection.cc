@@ -88,6 +88,10 @@ void CutDetectorOptions::Check() const {
                         min_opening_balance <= 1.0,
                     "", "cut_detector.min_opening_balance", "must be in [0, 1], got ",
                     min_opening_balance);
+  ARREG_CHECK_INPUT(std::isfinite(min_opening_balance_bridges) &&
+                        min_opening_balance_bridges >= 0.0 && min_opening_balance_bridges <= 1.0,
+                    "", "cut_detector.min_opening_balance_bridges", "must be in [0, 1], got ",
+                    min_opening_balance_bridges);
   ARREG_CHECK_INPUT(std::isfinite(bridge_radius_factor) && bridge_radius_factor >= 0.0, "",
                     "cut_detector.bridge_radius_factor", "must be >= 0 (0: no bridges), got ",
                     bridge_radius_factor);
@@ -462,7 +466,7 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
         continue;
       }
       if (options_.cluster_outliers && options_.min_opening_balance > 0.0 && !grows &&
-          OpeningBalance(*result) < options_.min_opening_balance) {
+          OpeningBalance(*result) < MinOpeningBalance(*result)) {
         ++result->one_sided_clusters;
         DropClusterFromCandidates();
         continue;
@@ -1016,6 +1020,17 @@ double CutDetector::OpeningBalance(const DetectionResult& result) const {
     high += result.measure[k] * std::max(out_l, out_m);
   }
   return high > 0.0 ? low / high : 0.0;
+}
+
+double CutDetector::MinOpeningBalance(const DetectionResult& result) const {
+  double bridges = 0.0, all = 0.0;
+  for (int k : cluster_) {
+    all += result.measure[k];
+    if (result.pairs[k].bridge) bridges += result.measure[k];
+  }
+  return bridges >= 0.9 * all
+             ? std::min(options_.min_opening_balance_bridges, options_.min_opening_balance)
+             : options_.min_opening_balance;
 }
 
 bool CutDetector::ExtremityAtBorder(bool front) const {

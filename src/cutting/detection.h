@@ -111,6 +111,17 @@ struct CutDetectorOptions {
   // applies to a single feature (partners less than half as far off), extended to several features
   // on the same side. Not in the thesis; only with cluster_outliers; 0 disables. Default 0.5.
   double min_opening_balance = 0.5;
+  // [-] The bound of min_opening_balance for a cluster of bridges (bridge_radius_factor): one
+  // whose measure comes for at least 9/10 from bridges, so that the features next to the seam
+  // on both lips are lost. A bridge's endpoints lie at unequal distances from the seam, and the
+  // uncut model's misfit falls off with the distance from it: where both lips open, the
+  // endpoint next to the seam lies 14-16 mm outward and the one 15-25 px farther 4-7 mm
+  // (band-cut-v seed 22, frame 90), so a bridge's balance is lower than that of a pair whose
+  // endpoints both neighbour the seam (the cut's bridge clusters: 0.36-0.50 in every frame from
+  // 53 to 119, and it was never started). A strain concentration's bridge clusters stay far
+  // below (at most 0.21 over 95 band-stretch seeds and 81 with twice the features). Not in the
+  // thesis; used only where below min_opening_balance (0 there disables both). Default 1/3.
+  double min_opening_balance_bridges = 1.0 / 3.0;
   // A cluster that would start a polyline and in which one feature is an endpoint of more than
   // 3/4 of the pairs (a star) is no separation: whatever its partners do, one feature's
   // disagreement with its neighbours is explained by that feature (its track, or a strain
@@ -361,6 +372,9 @@ class CutDetector {
   void DropClusterFromCandidates();
   // Opening balance of cluster_ (see CutDetectorOptions::min_opening_balance).
   double OpeningBalance(const DetectionResult& result) const;
+  // The bound it must reach: min_opening_balance, or min_opening_balance_bridges for a cluster
+  // of bridges.
+  double MinOpeningBalance(const DetectionResult& result) const;
   // The median over cluster_'s pairs of the relative change of their targets' distance since
   // closing_window_frames frames ago (or the first frame, if fewer); 0 in the first frame.
   double ClusterDistanceChange(const DetectionResult& result) const;

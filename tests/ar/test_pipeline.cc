@@ -397,6 +397,16 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_DOUBLE_EQ(p.cutting.detector.probe_max_lead_factor, 1.5);
   scene.cutting = {{"probe_outlier_factor", -1.0}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  // Session 23: the balance bound of a cluster of bridges.
+  EXPECT_DOUBLE_EQ(o.cutting.detector.min_opening_balance_bridges, 1.0 / 3.0);
+  scene.cutting = {{"min_opening_balance_bridges", 0.25}};
+  EXPECT_DOUBLE_EQ(ReadPipelineOptions(scene).cutting.detector.min_opening_balance_bridges, 0.25);
+  EXPECT_DOUBLE_EQ(
+      PipelineOptionsToJson(ReadPipelineOptions(scene))["cutting"]["min_opening_balance_bridges"]
+          .get<double>(),
+      0.25);
+  scene.cutting = {{"min_opening_balance_bridges", 1.5}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
   // Session 9: internal structures split and capped, or their crossing triangles deleted.
   EXPECT_TRUE(o.cutting.internal_caps);
   scene.cutting = {{"internal_caps", false}};

@@ -82,6 +82,8 @@ struct SeamScenario {
   // the gap at their place is 1 mm wide (the tracker loses the lips of a tear; 0: none die).
   double lip_loss_mm = 0.0;
   double lip_loss_from_mm = 0.0;
+  // On the seam's negative side the lip is lost this wide instead (< 0: as lip_loss_mm).
+  double lip_loss_negative_mm = -1.0;
   // Up to wide_loss_to_mm along the seam (and beyond lip_loss_from_mm) the features closer than
   // wide_loss_mm die likewise: a stretch where the tracker loses both lips too widely for bridges.
   double wide_loss_mm = 0.0;
@@ -97,6 +99,9 @@ struct SeamScenario {
   double strain_to_mm = 0.0;
   double strain_mm = 0.0;
   double strain_width_mm = 5.0;
+  // The opening is carried by the positive side alone: the features on the negative side stay
+  // (targets and model), those on the positive side move by the whole gap.
+  bool one_sided_opening = false;
 
   // Width [mm] of the gap at arc length `along` when the tip is at `tip`. Behind the start
   // (beyond the border, where the grid's far corners lie) the halves move as at the start.
@@ -123,6 +128,7 @@ struct SeamRun {
   int bridged = 0;           // pairs bridged over the frames
   int died = 0;              // features lost (lip_loss_mm)
   int refused_segments = 0;  // points refused by the segment check over the frames
+  int one_sided = 0;         // clusters rejected as one-sided over the frames
 };
 
 SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOptions& options,
@@ -149,8 +155,9 @@ SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOp
     RowMatX3d target = g.p0, model = g.p0;
     for (int r = 0; r < n; ++r) {
       const Eigen::Vector2d c = s.Coordinates(g.p0.row(r).transpose());
-      const double open = s.Opening(c.x(), tip);
       const double side = c.y() > 0 ? 1.0 : -1.0;
+      const double share = s.one_sided_opening ? (side > 0 ? 1.0 : 0.0) : 0.5;
+      const double open = 2.0 * share * s.Opening(c.x(), tip);
       target.row(r).head<2>() += side * 0.5 * open * normal.transpose();
       if (c.x() > s.strain_from_mm && c.x() < s.strain_to_mm) {
         const double strain =
@@ -169,8 +176,9 @@ SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOp
     std::vector<int> rows;
     for (int r = 0; r < n; ++r) {
       const Eigen::Vector2d c = s.Coordinates(g.p0.row(r).transpose());
-      const double loss =
-          c.x() < s.wide_loss_to_mm ? std::max(s.lip_loss_mm, s.wide_loss_mm) : s.lip_loss_mm;
+      const double lip =
+          c.y() < 0 && s.lip_loss_negative_mm >= 0 ? s.lip_loss_negative_mm : s.lip_loss_mm;
+      const double loss = c.x() < s.wide_loss_to_mm ? std::max(lip, s.wide_loss_mm) : lip;
       if (alive[r] && std::abs(c.y()) < loss && c.x() > s.lip_loss_from_mm &&
           s.Opening(c.x(), tip) >= 1.0) {
         alive[r] = 0;
@@ -188,6 +196,7 @@ SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOp
     detector.Update(frame, &result);
     run.bridged += result.pairs_bridged;
     run.refused_segments += result.refused_segments;
+    run.one_sided += result.one_sided_clusters;
     if (result.look_ahead_mm) {
       // The look-ahead point lies on the r_pc sphere around the grown extremity, on the line
       // through the extremity's last segment.
@@ -230,6 +239,9 @@ TEST(CutDetectorOptions, CheckNamesTheField) {
   o = {};
   o.min_opening_balance = 1.5;
   expect_named(o, "min_opening_balance");
+  o = {};
+  o.min_opening_balance_bridges = -0.1;
+  expect_named(o, "min_opening_balance_bridges");
   o = {};
   o.closing_window_frames = -1;
   expect_named(o, "closing_window_frames");
@@ -659,6 +671,45 @@ TEST(CutDetector, LipsLostFromTheStartAreBridgedIntoACut) {
       const Eigen::Vector2d c = scenario.Coordinates(run.points[i].initial_position_mm);
       EXPECT_LT(std::abs(c.y()), run.resolved.cut_point_radius_mm) << "cut point " << i;
       EXPECT_LT(c.x(), run.tip_at_point[i] + run.resolved.cut_point_radius_mm) << "cut point " << i;
+    }
+  }
+}
+
+// The same tear with its lips lost from the start, but unevenly: within 5 mm of the seam on one
+// side and 15 mm on the other, under a model whose misfit falls off over 8 mm from the seam.
+// Each bridge joins a feature next to the seam to one farther from it, whose target lies less
+// far outward (band-cut-v seed 22: 14-16 mm next to the seam, 4-7 mm 15-25 px farther), so the
+// clusters' balance falls below min_opening_balance although both lips open. Held to
+// min_opening_balance_bridges, a cluster of bridges starts the polyline by the time the tip is
+// 60 mm along (measured: 39-53); held to min_opening_balance, later on all five seeds (67 and
+// 89) or never (three). With the uncut model following one lip (its features' targets on
+// their model points) the clusters are one-sided whatever the bound, and nothing starts.
+TEST(CutDetector, BridgesAcrossUnevenlyLostLipsStartACut) {
+  const FeatureGrid g = MakeGrid();
+  for (unsigned seed : {1u, 2u, 3u, 4u, 5u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    SeamScenario scenario = LostLipsScenario(seed, -1e9);
+    scenario.stiffness_mm = 8.0;
+    scenario.lip_loss_mm = 5.0;
+    scenario.lip_loss_negative_mm = 15.0;
+    CutDetectorOptions options;
+    options.probe_length_factor = 0.0;
+    const SeamRun run = RunSeam(g, scenario, options);
+    ASSERT_GE(run.points.size(), 2u);
+    EXPECT_LE(run.tip_at_point[0], 60.0);
+    ExpectPointsFollowTheSeam(scenario, run, 0);
+
+    CutDetectorOptions strict = options;
+    strict.min_opening_balance_bridges = strict.min_opening_balance;
+    const SeamRun strict_run = RunSeam(g, scenario, strict);
+    EXPECT_GT(strict_run.one_sided, 0);
+    if (!strict_run.points.empty()) EXPECT_GT(strict_run.tip_at_point[0], run.tip_at_point[0]);
+
+    scenario.one_sided_opening = true;
+    for (const CutDetectorOptions& o : {options, strict}) {
+      const SeamRun one_sided = RunSeam(g, scenario, o);
+      EXPECT_TRUE(one_sided.points.empty());
+      EXPECT_GT(one_sided.one_sided, 0);
     }
   }
 }
