@@ -1023,12 +1023,14 @@ double CutDetector::OpeningBalance(const DetectionResult& result) const {
 }
 
 double CutDetector::MinOpeningBalance(const DetectionResult& result) const {
+  // A cluster of bridges: at least this share of its mu from bridges.
+  constexpr double kBridgeShare = 0.9;
   double bridges = 0.0, all = 0.0;
   for (int k : cluster_) {
     all += result.measure[k];
     if (result.pairs[k].bridge) bridges += result.measure[k];
   }
-  return bridges >= 0.9 * all
+  return bridges >= kBridgeShare * all
              ? std::min(options_.min_opening_balance_bridges, options_.min_opening_balance)
              : options_.min_opening_balance;
 }

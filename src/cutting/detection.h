@@ -117,8 +117,8 @@ struct CutDetectorOptions {
   // uncut model's misfit falls off with the distance from it: where both lips open, the
   // endpoint next to the seam lies 14-16 mm outward and the one 15-25 px farther 4-7 mm
   // (band-cut-v seed 22, frame 90), so a bridge's balance is lower than that of a pair whose
-  // endpoints both neighbour the seam (the cut's bridge clusters: 0.36-0.50 in every frame from
-  // 53 to 119, and it was never started). A strain concentration's bridge clusters stay far
+  // endpoints both neighbour the seam (that cut's bridge clusters scored 0.36-0.50 in every frame
+  // from 53 to 119, so it was never started). A strain concentration's bridge clusters stay far
   // below (at most 0.21 over 95 band-stretch seeds and 81 with twice the features). Not in the
   // thesis; used only where below min_opening_balance (0 there disables both). Default 1/3.
   double min_opening_balance_bridges = 1.0 / 3.0;
