@@ -92,6 +92,10 @@ void CutDetectorOptions::Check() const {
                         min_opening_balance_bridges >= 0.0 && min_opening_balance_bridges <= 1.0,
                     "", "cut_detector.min_opening_balance_bridges", "must be in [0, 1], got ",
                     min_opening_balance_bridges);
+  ARREG_CHECK_INPUT(std::isfinite(min_lone_growth_balance) && min_lone_growth_balance >= -1.0 &&
+                        min_lone_growth_balance <= 1.0,
+                    "", "cut_detector.min_lone_growth_balance", "must be in [-1, 1], got ",
+                    min_lone_growth_balance);
   ARREG_CHECK_INPUT(std::isfinite(bridge_radius_factor) && bridge_radius_factor >= 0.0, "",
                     "cut_detector.bridge_radius_factor", "must be >= 0 (0: no bridges), got ",
                     bridge_radius_factor);
@@ -469,6 +473,16 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
           OpeningBalance(*result) < MinOpeningBalance(*result)) {
         ++result->one_sided_clusters;
         DropClusterFromCandidates();
+        continue;
+      }
+      // A lone point's growth (nothing is cut yet) must not close one lip (on the whole, one
+      // side's targets inward of their model points): that is a strain concentration, and the
+      // lone point beside it is taken as its work and dropped.
+      if (options_.cluster_outliers && grows && polyline_.size() == 1 &&
+          OpeningBalance(*result) <= options_.min_lone_growth_balance) {
+        ++result->one_sided_clusters;
+        DropClusterFromCandidates();
+        polyline_.clear();
         continue;
       }
       if (options_.cluster_outliers && options_.reject_star_starts && !grows &&

@@ -407,6 +407,15 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
       0.25);
   scene.cutting = {{"min_opening_balance_bridges", 1.5}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  // ... and of a lone point's growth.
+  EXPECT_DOUBLE_EQ(o.cutting.detector.min_lone_growth_balance, 0.0);
+  scene.cutting = {{"min_lone_growth_balance", -1.0}};
+  EXPECT_DOUBLE_EQ(
+      PipelineOptionsToJson(ReadPipelineOptions(scene))["cutting"]["min_lone_growth_balance"]
+          .get<double>(),
+      -1.0);
+  scene.cutting = {{"min_lone_growth_balance", 2.0}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
   // Session 9: internal structures split and capped, or their crossing triangles deleted.
   EXPECT_TRUE(o.cutting.internal_caps);
   scene.cutting = {{"internal_caps", false}};

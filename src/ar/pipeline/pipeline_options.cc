@@ -206,6 +206,7 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("cluster_outliers", &o->detector.cluster_outliers);
   r.Optional("min_opening_balance", &o->detector.min_opening_balance);
   r.Optional("min_opening_balance_bridges", &o->detector.min_opening_balance_bridges);
+  r.Optional("min_lone_growth_balance", &o->detector.min_lone_growth_balance);
   r.Optional("grow_at_extremities_only", &o->detector.grow_at_extremities_only);
   r.Optional("min_outlier_measure_mm", &o->detector.min_outlier_measure_mm);
   r.Optional("bridge_radius_factor", &o->detector.bridge_radius_factor);
@@ -334,6 +335,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"cluster_outliers", o.cutting.detector.cluster_outliers},
       {"min_opening_balance", o.cutting.detector.min_opening_balance},
       {"min_opening_balance_bridges", o.cutting.detector.min_opening_balance_bridges},
+      {"min_lone_growth_balance", o.cutting.detector.min_lone_growth_balance},
       {"grow_at_extremities_only", o.cutting.detector.grow_at_extremities_only},
       {"min_outlier_measure_mm", o.cutting.detector.min_outlier_measure_mm},
       {"bridge_radius_factor", o.cutting.detector.bridge_radius_factor},
