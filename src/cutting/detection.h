@@ -302,7 +302,8 @@ struct DetectionResult {
   int pairs_removed_by_cut = 0;  // pairs crossing the r_pc sphere of the new cut points
   // Clusters rejected this frame as one feature's star (reject_lone_features).
   int lone_features = 0;
-  int one_sided_clusters = 0;  // clusters rejected this frame by min_opening_balance
+  // Clusters rejected this frame by min_opening_balance (starts) or min_lone_growth_balance.
+  int one_sided_clusters = 0;
   int star_starts = 0;         // clusters rejected this frame by reject_star_starts
   // Clusters whose start the model-regularised measure did not confirm
   // (confirm_starts_with_model_measure).
