@@ -304,7 +304,7 @@ struct DetectionResult {
   int lone_features = 0;
   // Clusters rejected this frame by min_opening_balance (starts) or min_lone_growth_balance.
   int one_sided_clusters = 0;
-  int star_starts = 0;         // clusters rejected this frame by reject_star_starts
+  int star_starts = 0;  // clusters rejected this frame by reject_star_starts
   // Clusters whose start the model-regularised measure did not confirm
   // (confirm_starts_with_model_measure).
   int unconfirmed_starts = 0;

@@ -64,9 +64,10 @@ TEST(EndToEnd, BandStretchRegistersWithoutCuts) {
   EXPECT_EQ(dense_summary.cut_events, 0);
 }
 
-// The band-stretch scene of `seed`, generated under a scratch directory of its own.
-Scene BandStretchScene(int seed) {
-  const std::string dir = testing::ScratchDir("e2e_band_stretch_seed" + std::to_string(seed));
+// The band-stretch scene of `seed`, generated under a scratch directory of its own (`tag` tells
+// apart two tests of one seed, which ctest may run at once).
+Scene BandStretchScene(int seed, const std::string& tag = "") {
+  const std::string dir = testing::ScratchDir("e2e_band_stretch_seed" + std::to_string(seed) + tag);
   synth::SynthOptions so;
   so.scenario = "band-stretch";
   so.seed = seed;
@@ -206,7 +207,7 @@ TEST(EndToEnd, BandStretchReleaseClosesTheStemsPairsAndStartsNoCut) {
 // so such a growth is rejected and the lone point dropped (cutting.min_lone_growth_balance): no
 // event here (4 of the 81 seeds still make one); without the rule 3 events.
 TEST(EndToEnd, BandStretchWithTwiceTheFeaturesGrowsNoLonePointIntoACut) {
-  const Scene scene = BandStretchScene(30);
+  const Scene scene = BandStretchScene(30, "_dense");
   pipeline::PipelineOptions options = pipeline::ReadPipelineOptions(scene);
   options.tracking.surf.hessian_threshold = 0.5;
   options.tracking.min_distance_px = 2;
