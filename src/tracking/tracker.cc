@@ -36,6 +36,8 @@ const char* TrackStatusName(TrackStatus status) {
       return "specular";
     case TrackStatus::kLostAppearance:
       return "lost-appearance";
+    case TrackStatus::kInstrument:
+      return "instrument";
   }
   return "unknown";
 }
@@ -96,6 +98,7 @@ void FeatureTrackerOptions::Check() const {
   reidentify.Check();
   appearance.Check();
   drift.Check();
+  instruments.Check();
   lk.Check();
   outliers.Check();
   specular.Check();
@@ -348,6 +351,15 @@ void FeatureTracker::PrepareFrame(const cv::Mat& image, const cv::Mat& roi_mask)
     bgr_.release();
     gray_ = image;
   }
+  instrument_mask_.release();
+  free_roi_ = roi_mask;
+  if (options_.instruments.enabled && !bgr_.empty()) {
+    instrument_mask_ = InstrumentMask(bgr_, options_.instruments.mask);
+    if (cv::countNonZero(instrument_mask_) > 0) {
+      cv::bitwise_not(instrument_mask_, free_roi_);
+      if (!roi_mask.empty()) cv::bitwise_and(free_roi_, roi_mask, free_roi_);
+    }
+  }
   // The previous frame's pyramid is kept, not rebuilt; the buffers of the one
   // before are reused for the new one.
   std::swap(previous_pyramid_, pyramid_);
@@ -372,6 +384,63 @@ bool FeatureTracker::IsSpecular(cv::Point2f p) const {
       }
     }
   return false;
+}
+
+bool FeatureTracker::OnInstrument(cv::Point2f p) const {
+  if (instrument_mask_.empty()) return false;
+  const int x = static_cast<int>(std::lround(p.x)), y = static_cast<int>(std::lround(p.y));
+  if (x < 0 || y < 0 || x >= instrument_mask_.cols || y >= instrument_mask_.rows) return false;
+  return instrument_mask_.at<uint8_t>(y, x) != 0;
+}
+
+void FeatureTracker::RejectRigidInstrumentMotion() {
+  const InstrumentMotionOptions& o = options_.instruments.motion;
+  // Where instruments were seen lately: the mask, and the features dropped as on an
+  // instrument in the last kInstrumentMemoryFrames frames (parts the colour misses).
+  const bool mask = !instrument_mask_.empty() && cv::countNonZero(instrument_mask_) > 0;
+  instrument_seen_.erase(
+      std::remove_if(instrument_seen_.begin(), instrument_seen_.end(),
+                     [&](const auto& s) { return frame_ - s.first > kInstrumentMemoryFrames; }),
+      instrument_seen_.end());
+  if (!mask && instrument_seen_.empty()) return;
+  // Distance of every pixel to the mask: features within band_px are candidates.
+  cv::Mat distance;
+  if (mask) {
+    cv::Mat outside;
+    cv::bitwise_not(instrument_mask_, outside);
+    cv::distanceTransform(outside, distance, cv::DIST_L2, 3);
+  }
+  const float band2 = static_cast<float>(o.band_px * o.band_px);
+  std::vector<int> index;
+  std::vector<cv::Point2f> from, to;
+  std::vector<uint8_t> near;
+  for (int i = 0; i < static_cast<int>(current_.size()); ++i) {
+    const FeatureState& f = current_[i];
+    // Features followed into this frame: still tracked, or just found on the instrument.
+    if (f.status != TrackStatus::kTracked && f.status != TrackStatus::kInstrument) continue;
+    bool close = false;
+    if (mask) {
+      const int x =
+          std::clamp(static_cast<int>(std::lround(f.position_px.x)), 0, distance.cols - 1);
+      const int y =
+          std::clamp(static_cast<int>(std::lround(f.position_px.y)), 0, distance.rows - 1);
+      close = distance.at<float>(y, x) <= o.band_px;
+    }
+    for (size_t k = 0; k < instrument_seen_.size() && !close; ++k) {
+      const cv::Point2f d = instrument_seen_[k].second - f.position_px;
+      close = d.dot(d) <= band2;
+    }
+    index.push_back(i);
+    from.push_back(previous_position_[i]);
+    to.push_back(f.position_px);
+    near.push_back(close ? 1 : 0);
+  }
+  const std::vector<bool> flagged = RigidInstrumentMotion(from, to, near, o);
+  for (size_t j = 0; j < index.size(); ++j) {
+    FeatureState& f = current_[index[j]];
+    if (flagged[j]) f.status = TrackStatus::kInstrument;
+    if (f.status == TrackStatus::kInstrument) instrument_seen_.emplace_back(frame_, f.position_px);
+  }
 }
 
 bool FeatureTracker::InsideRoi(cv::Point2f p, const cv::Mat& roi_mask) const {
@@ -501,8 +570,12 @@ void FeatureTracker::RememberLost() {
   std::vector<int> lost_ids;
   for (int i = 0; i < static_cast<int>(current_.size()); ++i) {
     const TrackStatus status = current_[i].status;
-    // Outliers moved implausibly: they are dropped for good (thesis 7.4.1).
-    if (status == TrackStatus::kTracked || status == TrackStatus::kOutlierSpatioTemporal) continue;
+    // Outliers moved implausibly: they are dropped for good (thesis 7.4.1). So are features
+    // on an instrument: one that rode it would be found again on it (its jaws may escape the
+    // colour mask), and tissue dragged onto it by its edge has left its place.
+    if (status == TrackStatus::kTracked || status == TrackStatus::kOutlierSpatioTemporal ||
+        status == TrackStatus::kInstrument)
+      continue;
     // Where it was last followed (the frame before): LK's position in this
     // frame is what failed. Its look there verifies a re-identification.
     LostFeature lost{current_[i].id, frame_, previous_position_[i], {}, {}};
@@ -936,6 +1009,7 @@ TrackFrameSummary FeatureTracker::Initialize(const cv::Mat& image, const cv::Mat
   current_.clear();
   previous_position_.clear();
   lost_.clear();
+  instrument_seen_.clear();
   acquired_look_.clear();
   anchors_.clear();
   reference_descriptors_.release();
@@ -943,7 +1017,7 @@ TrackFrameSummary FeatureTracker::Initialize(const cv::Mat& image, const cv::Mat
   PrepareFrame(image, roi_mask);
   TrackFrameSummary summary;
   summary.frame = 0;
-  summary.num_new = Detect(roi_mask);
+  summary.num_new = Detect(free_roi_);
   summary.num_active = summary.num_new;
   summary.count[static_cast<int>(TrackStatus::kTracked)] = summary.num_new;
   return summary;
@@ -1006,6 +1080,8 @@ TrackFrameSummary FeatureTracker::Track(const cv::Mat& image, const cv::Mat& roi
       if (to.x < border || to.y < border || to.x > gray_.cols - 1 - border ||
           to.y > gray_.rows - 1 - border) {
         f.status = TrackStatus::kLostBorder;
+      } else if (OnInstrument(to)) {
+        f.status = TrackStatus::kInstrument;
       } else if (IsSpecular(to) || IsSpecular(from)) {
         f.status = TrackStatus::kSpecular;
       } else if (fb && (!lk_status_back_[i] || miss.dot(miss) > fb_max2)) {
@@ -1015,6 +1091,13 @@ TrackFrameSummary FeatureTracker::Track(const cv::Mat& image, const cv::Mat& roi
       } else {
         candidates_.push_back(i);
       }
+    }
+    if (options_.instruments.enabled && options_.instruments.motion.enabled) {
+      RejectRigidInstrumentMotion();
+      candidates_.erase(
+          std::remove_if(candidates_.begin(), candidates_.end(),
+                         [&](int i) { return current_[i].status != TrackStatus::kTracked; }),
+          candidates_.end());
     }
     if (options_.outliers.enabled) {
       candidate_positions_.clear();
@@ -1045,12 +1128,12 @@ TrackFrameSummary FeatureTracker::Track(const cv::Mat& image, const cv::Mat& roi
     if (frame_ % options_.reidentify.every_frames == 0) {
       round_surf_.SetImage(gray_);
       round_frame_ = frame_;
-      summary.num_reidentified = Reidentify(roi_mask);
-      if (options_.reidentify.reacquire_by_lk) summary.num_reidentified += Reacquire(roi_mask);
+      summary.num_reidentified = Reidentify(free_roi_);
+      if (options_.reidentify.reacquire_by_lk) summary.num_reidentified += Reacquire(free_roi_);
     }
   }
   if (options_.redetect_every_frames > 0 && frame_ % options_.redetect_every_frames == 0)
-    summary.num_new = Detect(roi_mask);
+    summary.num_new = Detect(free_roi_);
   for (const FeatureState& f : current_) ++summary.count[static_cast<int>(f.status)];
   summary.num_active = summary.count[static_cast<int>(TrackStatus::kTracked)];
   return summary;

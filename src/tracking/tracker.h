@@ -9,14 +9,16 @@
 #include <opencv2/core.hpp>
 
 #include "tracking/affine_refine.h"
+#include "tracking/instrument.h"
 #include "tracking/lucas_kanade.h"
 #include "tracking/surf.h"
 
 namespace arreg {
 
 // Why a feature is (no longer) followed. Anything but kTracked takes the
-// feature out of the active set: an outlier for good, the others until it is
-// re-identified (ReidentifyOptions), which continues the same id.
+// feature out of the active set: an outlier or a feature on an instrument for
+// good, the others until it is re-identified (ReidentifyOptions), which
+// continues the same id.
 enum class TrackStatus : uint8_t {
   kTracked = 0,            // followed into this frame (or detected in it)
   kLostBorder,             // left the image or came within border_px of its edge
@@ -26,8 +28,9 @@ enum class TrackStatus : uint8_t {
   kOutlierSpatioTemporal,  // moved far more than its neighbours in one frame
   kSpecular,               // landed on a specular highlight
   kLostAppearance,         // its window no longer looks like it did when acquired (dragged off)
+  kInstrument,             // on a surgical instrument, or moving rigidly with one (instrument.h)
 };
-constexpr int kNumTrackStatuses = 8;
+constexpr int kNumTrackStatuses = 9;
 const char* TrackStatusName(TrackStatus status);
 
 // Spatio-temporal outlier filter (thesis 7.4.1): a feature whose frame-to-frame
@@ -157,6 +160,9 @@ struct FeatureTrackerOptions {
   // aligned to the frame with an affine warp from where Lucas-Kanade put it
   // (affine_refine.h); the feature moves there when it matches.
   DriftCorrectionOptions drift;
+  // Features on surgical instruments (colour mask) or moving rigidly with one are dropped
+  // (kInstrument); none is detected or re-identified on the mask. BGR input only.
+  InstrumentRejectionOptions instruments;
   // Most features followed at once. Default 1000.
   int max_features = 1000;
   // Fewest features wanted after a detection (0 = off, the default). When the points above
@@ -249,6 +255,9 @@ class FeatureTracker {
   int frame() const { return frame_; }
   const TrackStore& store() const { return store_; }
   const FeatureTrackerOptions& options() const { return options_; }
+  // The current frame's instrument mask (CV_8UC1, 255 on instruments; empty when
+  // instruments.enabled is off or the input is grey).
+  const cv::Mat& instrument_mask() const { return instrument_mask_; }
 
  private:
   void PrepareFrame(const cv::Mat& image, const cv::Mat& roi_mask);
@@ -328,6 +337,17 @@ class FeatureTracker {
   };
   std::vector<DriftAnchor> anchors_;
   cv::Mat roi_;  // the current frame's ROI mask (empty: the whole image)
+  // Instrument rejection: the current frame's mask, and the ROI without it (where features
+  // may be detected and re-identified; the ROI itself when there is no mask).
+  cv::Mat instrument_mask_, free_roi_;
+  bool OnInstrument(cv::Point2f p) const;
+  // Marks the features of current_ that ride an instrument (RigidInstrumentMotion) kInstrument.
+  void RejectRigidInstrumentMotion();
+  // (frame, position) of the features dropped as on an instrument in the last few frames:
+  // features near them are candidates of the motion test too (the instrument's parts that the
+  // colour mask misses, e.g. jaws mirroring the tissue, are found by their features).
+  static constexpr int kInstrumentMemoryFrames = 3;
+  std::vector<std::pair<int, cv::Point2f>> instrument_seen_;
   // Anchors feature `id` at `position_px` in the current frame.
   void Anchor(int id, cv::Point2f position_px);
   // Moves the tracked features of current_ to where their anchors align.
