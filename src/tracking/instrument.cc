@@ -51,8 +51,8 @@ void InstrumentMotionOptions::Check() const {
   ARREG_CHECK_INPUT(std::isfinite(reference_radius_px) && reference_radius_px > 0, "",
                     "InstrumentMotionOptions.reference_radius_px", "must be > 0, got ",
                     reference_radius_px);
-  ARREG_CHECK_INPUT(max_groups >= 1, "", "InstrumentMotionOptions.max_groups",
-                    "must be >= 1, got ", max_groups);
+  ARREG_CHECK_INPUT(max_groups >= 1, "", "InstrumentMotionOptions.max_groups", "must be >= 1, got ",
+                    max_groups);
   ARREG_CHECK_INPUT(max_group_fraction > 0 && max_group_fraction <= 1, "",
                     "InstrumentMotionOptions.max_group_fraction", "must be in (0, 1], got ",
                     max_group_fraction);
@@ -105,7 +105,12 @@ cv::Mat InstrumentMask(const cv::Mat& bgr, const InstrumentMaskOptions& options)
   // Seed area in pixels of the full image.
   const double min_seeds = options.min_area_fraction * bgr.rows * bgr.cols / (ds * ds);
   std::vector<uint8_t> keep(n, 0);
-  for (int k = 1; k < n; ++k) keep[k] = seeds[k] > 0 && seeds[k] >= min_seeds ? 255 : 0;
+  bool any = false;
+  for (int k = 1; k < n; ++k) {
+    keep[k] = seeds[k] > 0 && seeds[k] >= min_seeds ? 255 : 0;
+    any = any || keep[k];
+  }
+  if (!any) return cv::Mat(bgr.size(), CV_8UC1, cv::Scalar(0));
   cv::Mat mask(lab.size(), CV_8UC1);
   for (int r = 0; r < lab.rows; ++r) {
     const int* l = labels.ptr<int>(r);
@@ -113,18 +118,22 @@ cv::Mat InstrumentMask(const cv::Mat& bgr, const InstrumentMaskOptions& options)
     for (int c = 0; c < lab.cols; ++c) m[c] = keep[l[c]];
   }
   if (options.close_px > 0)
-    cv::morphologyEx(mask, mask, cv::MORPH_CLOSE,
-                     cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * options.close_px + 1,
-                                                                           2 * options.close_px + 1)));
+    cv::morphologyEx(
+        mask, mask, cv::MORPH_CLOSE,
+        cv::getStructuringElement(cv::MORPH_ELLIPSE,
+                                  cv::Size(2 * options.close_px + 1, 2 * options.close_px + 1)));
+  // The margin is grown on the shrunk mask (rounded up to its pixels): a dilation of the full
+  // image costs more than the rest together.
+  const int margin = (options.margin_px + ds - 1) / ds;
+  if (margin > 0)
+    cv::dilate(
+        mask, mask,
+        cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * margin + 1, 2 * margin + 1)));
   cv::Mat full;
   if (ds > 1)
     cv::resize(mask, full, bgr.size(), 0, 0, cv::INTER_NEAREST);
   else
     full = mask;
-  if (options.margin_px > 0)
-    cv::dilate(full, full,
-               cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * options.margin_px + 1,
-                                                                     2 * options.margin_px + 1)));
   return full;
 }
 
@@ -186,7 +195,9 @@ std::vector<bool> RigidInstrumentMotion(const std::vector<cv::Point2f>& from_px,
   const double tolerance2 = options.max_residual_px * options.max_residual_px;
   const double reach2 = options.band_px * options.band_px;
   const double radius2 = options.reference_radius_px * options.reference_radius_px;
-  auto fits = [&](const Similarity& s, int i) { return std::norm(s(from[i]) - to[i]) <= tolerance2; };
+  auto fits = [&](const Similarity& s, int i) {
+    return std::norm(s(from[i]) - to[i]) <= tolerance2;
+  };
 
   std::vector<char> grouped(n, 0);  // member of a group found this frame
   std::mt19937 rng(1);              // fixed: the same frame gives the same groups

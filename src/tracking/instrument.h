@@ -44,8 +44,8 @@ struct InstrumentMaskOptions {
   // Morphological closing of the regions, pixels of the shrunk image: fills the text,
   // highlights and seams on an instrument. Default 2.
   int close_px = 2;
-  // The mask is grown by this, pixels of the image: a feature whose window straddles the
-  // instrument's edge is on it. Default 4.
+  // The mask is grown by this, pixels of the image (rounded up to pixels of the shrunk image):
+  // a feature whose window straddles the instrument's edge is on it. Default 4.
   int margin_px = 4;
 
   void Check() const;  // throws arreg::Error naming the bad field

@@ -403,11 +403,18 @@ void FeatureTracker::RejectRigidInstrumentMotion() {
                      [&](const auto& s) { return frame_ - s.first > kInstrumentMemoryFrames; }),
       instrument_seen_.end());
   if (!mask && instrument_seen_.empty()) return;
-  // Distance of every pixel to the mask: features within band_px are candidates.
+  // Distance to the mask, on the mask shrunk like the segmentation (a pixel more or less does
+  // not matter against band_px, and it costs a quarter): features within band_px are
+  // candidates.
+  const int ds = options_.instruments.mask.downscale;
   cv::Mat distance;
   if (mask) {
     cv::Mat outside;
-    cv::bitwise_not(instrument_mask_, outside);
+    cv::resize(
+        instrument_mask_, outside,
+        cv::Size((instrument_mask_.cols + ds - 1) / ds, (instrument_mask_.rows + ds - 1) / ds), 0,
+        0, cv::INTER_NEAREST);
+    cv::bitwise_not(outside, outside);
     cv::distanceTransform(outside, distance, cv::DIST_L2, 3);
   }
   const float band2 = static_cast<float>(o.band_px * o.band_px);
@@ -420,11 +427,9 @@ void FeatureTracker::RejectRigidInstrumentMotion() {
     if (f.status != TrackStatus::kTracked && f.status != TrackStatus::kInstrument) continue;
     bool close = false;
     if (mask) {
-      const int x =
-          std::clamp(static_cast<int>(std::lround(f.position_px.x)), 0, distance.cols - 1);
-      const int y =
-          std::clamp(static_cast<int>(std::lround(f.position_px.y)), 0, distance.rows - 1);
-      close = distance.at<float>(y, x) <= o.band_px;
+      const int x = std::clamp(static_cast<int>(f.position_px.x / ds), 0, distance.cols - 1);
+      const int y = std::clamp(static_cast<int>(f.position_px.y / ds), 0, distance.rows - 1);
+      close = distance.at<float>(y, x) * ds <= o.band_px;
     }
     for (size_t k = 0; k < instrument_seen_.size() && !close; ++k) {
       const cv::Point2f d = instrument_seen_[k].second - f.position_px;
