@@ -84,14 +84,14 @@ std::string Format(const char* fmt, Numbers... numbers) {
 DebugLayers DebugLayers::Parse(const std::string& list) {
   DebugLayers l;
   l.features = l.targets = l.springs = l.pairs = l.outliers = l.cut = l.mesh = l.internal =
-      l.numbers = false;
+      l.numbers = l.instruments = false;
   std::stringstream ss(list);
   std::string name;
   while (std::getline(ss, name, ',')) {
     if (name.empty()) continue;
     if (name == "all") {
       l.features = l.targets = l.springs = l.pairs = l.outliers = l.cut = l.mesh = l.internal =
-          l.numbers = true;
+          l.numbers = l.instruments = true;
     } else if (name == "none") {
       l = DebugLayers::Parse("");
     } else if (name == "features") {
@@ -112,11 +112,13 @@ DebugLayers DebugLayers::Parse(const std::string& list) {
       l.internal = true;
     } else if (name == "numbers") {
       l.numbers = true;
+    } else if (name == "instruments") {
+      l.instruments = true;
     } else {
       throw Error("", "--layers",
                   "unknown layer '" + name +
                       "' (valid: features, targets, springs, pairs, outliers, cut, mesh, "
-                      "internal, numbers, all, none)");
+                      "internal, numbers, instruments, all, none)");
     }
   }
   return l;
@@ -167,8 +169,19 @@ void DrawDebugLayers(const nlohmann::json& record, const nlohmann::json& topolog
     }
   }
 
+  const cv::Scalar orange(0, 140, 255);
+  if (layers.instruments && record.contains("instruments"))
+    for (const auto& outline : record.at("instruments")) {
+      std::vector<cv::Point> poly;
+      for (size_t k = 0; k + 1 < outline.size(); k += 2)
+        poly.emplace_back(outline[k].get<int>(), outline[k + 1].get<int>());
+      cv::polylines(img, std::vector<std::vector<cv::Point>>{poly}, true, orange, 1, cv::LINE_AA);
+    }
+
   for (const auto& f : features) {
     const cv::Point2d px = ToPoint(f.at("px"));
+    if (layers.instruments && f.at("status").get<std::string>() == "instrument")
+      Circle(&img, px, 5.0, orange, 1);
     const bool has_target = f.contains("target_px") && IsPoint(f["target_px"]);
     const bool has_model = f.contains("model_px") && IsPoint(f["model_px"]);
     if (layers.springs && f.at("spring_active").get<bool>() && has_target && has_model)

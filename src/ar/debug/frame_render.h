@@ -12,14 +12,15 @@ namespace arreg::debug {
 struct DebugLayers {
   bool features =
       true;  // tracked pixels, coloured by status (green alive, grey lost, red not attached)
-  bool targets = true;    // projected targets p^1 (blue crosses)
-  bool springs = true;    // model point p^t to target p^1 (yellow segments)
-  bool pairs = false;     // neighbour graph coloured by mu / (tau * mean mu)
-  bool outliers = true;   // outlier pairs (red, thick)
-  bool cut = true;        // cut points, polyline (extended dashed), cut surface
-  bool mesh = false;      // wireframe of the model surface
-  bool internal = false;  // wireframe of the internal structures
-  bool numbers = true;    // text panel with the frame's figures
+  bool targets = true;      // projected targets p^1 (blue crosses)
+  bool springs = true;      // model point p^t to target p^1 (yellow segments)
+  bool pairs = false;       // neighbour graph coloured by mu / (tau * mean mu)
+  bool outliers = true;     // outlier pairs (red, thick)
+  bool cut = true;          // cut points, polyline (extended dashed), cut surface
+  bool mesh = false;        // wireframe of the model surface
+  bool internal = false;    // wireframe of the internal structures
+  bool numbers = true;      // text panel with the frame's figures
+  bool instruments = true;  // instrument outlines and features dropped on them (orange)
 
   // Parses "features,targets,..." ("all" and "none" too); throws arreg::Error naming the bad
   // layer and listing the valid ones.

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <ostream>
 #include <utility>
 
@@ -189,6 +190,22 @@ nlohmann::json MakeFrameRecord(const pipeline::FrameState& frame, const PinholeC
     }
   }
   rec["features"] = std::move(features);
+
+  // Instruments: outlines of the tracker's instrument mask (within 1.5 px).
+  nlohmann::json instruments = nlohmann::json::array();
+  if (frame.instrument_mask && !frame.instrument_mask->empty()) {
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(frame.instrument_mask->clone(), contours, cv::RETR_EXTERNAL,
+                     cv::CHAIN_APPROX_SIMPLE);
+    for (const std::vector<cv::Point>& c : contours) {
+      std::vector<cv::Point> outline;
+      cv::approxPolyDP(c, outline, 1.5, true);
+      nlohmann::json px = nlohmann::json::array();
+      for (const cv::Point& p : outline) px.push_back(p.x), px.push_back(p.y);
+      instruments.push_back(std::move(px));
+    }
+  }
+  rec["instruments"] = std::move(instruments);
 
   // Neighbour pairs of C^t with mu and the outlier test mu > tau * mean(mu).
   nlohmann::json detection = nullptr;

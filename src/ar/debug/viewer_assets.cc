@@ -73,7 +73,8 @@ const char kViewerJs[] = R"JS('use strict';
   const LAYERS = [['image', 'image', true], ['features', 'features', true],
     ['targets', 'targets', true], ['springs', 'springs', true], ['pairs', 'neighbour graph (mu)', false],
     ['outliers', 'outliers', true], ['cut', 'cut points / polyline', true], ['mesh', 'mesh wireframe', false],
-    ['internal', 'internal structures', false], ['track', 'selected track', true]];
+    ['internal', 'internal structures', false], ['instruments', 'instruments', true],
+    ['track', 'selected track', true]];
   const CACHE_FRAMES = 48;
   const records = new Map(), waiting = new Map(), images = new Map(), topologies = new Map();
   const topoWaiting = new Map();
@@ -226,7 +227,19 @@ const char kViewerJs[] = R"JS('use strict';
         else if (!p[3] && layerOn('pairs')) line(a.px, b.px, colourRatio(det.threshold > 0 ? p[2] / det.threshold : 0), 1);
       }
     }
+    if (layerOn('instruments') && rec.instruments) {
+      ctx.strokeStyle = '#ff8c00'; ctx.lineWidth = 1.5;
+      for (const o of rec.instruments) {
+        ctx.beginPath();
+        for (let k = 0; k + 1 < o.length; k += 2) (k ? ctx.lineTo : ctx.moveTo).call(ctx, o[k], o[k + 1]);
+        ctx.closePath(); ctx.stroke();
+      }
+    }
     for (const f of rec.features) {
+      if (layerOn('instruments') && f.status === 'instrument') {
+        ctx.beginPath(); ctx.arc(f.px[0], f.px[1], 5, 0, 2 * Math.PI);
+        ctx.strokeStyle = '#ff8c00'; ctx.lineWidth = 1; ctx.stroke();
+      }
       if (layerOn('springs') && f.spring_active && f.target_px && f.model_px) line(f.model_px, f.target_px, '#ffe600', 1);
       if (layerOn('targets') && f.target_px) {
         const t = f.target_px;

@@ -152,6 +152,8 @@ struct CutHandler::Plan {
   double depth = 0.0;   // of S, as a fraction of the depth that covers the model
   bool in_rest = false;
   bool splits = false;  // the last S tried was refused by keep_connected
+  // The polyline S was extruded from, in the rest configuration (CutEvent::polyline_rest_mm).
+  std::vector<Eigen::Vector3d> polyline_rest_mm;
 };
 
 CutHandler::Pieces CutHandler::FindPieces(const TetMesh& rest) {
@@ -259,6 +261,7 @@ CutHandler::Plan CutHandler::PlanCut(const std::vector<Eigen::Vector3d>& polylin
         if (splits) continue;
       }
       s = rest ? cutting::ExtrudeCutPolyline(line, eye_mm, ext) : NewPart(line, eye_mm, ext);
+      plan.polyline_rest_mm = rest ? line : rest_polyline_mm;
       ARREG_CHECK_INPUT(s.faces.rows() > 0, "", "CutHandler::Apply",
                         "every segment of the polyline was applied before");
       cut = CutWithRetry(s, &change);
@@ -376,6 +379,7 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
       ev.depth_fraction = depth;
       if (in_rest && applied_points_.empty()) depth_of_cut_ = depth;
       ev.configuration = in_rest ? "rest" : "current";
+      ev.polyline_rest_mm = plan.polyline_rest_mm;
       const int v_before = state.num_vertices(), t_before = state.num_tetrahedra();
       std::vector<int> new_elements;
       try {
@@ -433,6 +437,7 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
   } catch (const Error& e) {
     ev.status = "failed";
     ev.message = e.what();
+    ev.polyline_rest_mm.clear();
     ARREG_LOG_WARNING("run: frame ", frame, ": cut not applied: ", e.what());
   }
   return ev;

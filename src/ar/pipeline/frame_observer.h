@@ -63,6 +63,10 @@ struct CutEvent {
   // Vertices of debris (pieces below 0.5 % of the rest volume) welded to the nearest piece by
   // this event (CutHandler::FollowWelds).
   int welded_vertices = 0;
+  // The polyline S was extruded from, in the rest (frame-0, world mm) configuration: in the
+  // rest configuration the line that was cut (its ends carried across the outline), in the
+  // current one the frame-0 positions of the detector's points. Empty unless status is "cut".
+  std::vector<Eigen::Vector3d> polyline_rest_mm;
   nlohmann::json ToJson() const;
 };
 
@@ -89,6 +93,9 @@ struct FrameState {
   const cv::Mat* image = nullptr;    // decoded BGR frame
   const cv::Mat* overlay = nullptr;  // rendered overlay (empty Mat when rendering is off)
   const std::vector<FeatureView>* features = nullptr;
+  // The tracker's instrument mask of this frame (CV_8UC1, 255 on instruments); empty when
+  // instrument rejection is off. Features on it are dropped (TrackStatus::kInstrument).
+  const cv::Mat* instrument_mask = nullptr;
   const RowMatX3d* targets_mm = nullptr;  // (#features x 3) p^1_F, world
   const RowMatX3d* anchors_mm = nullptr;  // (#features x 3) p^t_F on the current model, world
   // Cut detection this frame; nullptr without topology handling.

@@ -152,6 +152,12 @@ void ReadTracking(const Scene& scene, FeatureTrackerOptions* o) {
   r.Optional("drift_every_frames", &o->drift.every_frames);
   r.Optional("drift_min_correlation", &o->drift.min_correlation);
   r.Optional("drift_max_correction_px", &o->drift.max_correction_px);
+  r.Optional("instrument_rejection", &o->instruments.enabled);
+  r.Optional("instrument_seed_max_warmth", &o->instruments.mask.seed_max_warmth);
+  r.Optional("instrument_grow_max_warmth", &o->instruments.mask.grow_max_warmth);
+  r.Optional("instrument_min_area_fraction", &o->instruments.mask.min_area_fraction);
+  r.Optional("instrument_margin_px", &o->instruments.mask.margin_px);
+  r.Optional("instrument_motion", &o->instruments.motion.enabled);
   r.Finish();
 }
 
@@ -259,6 +265,8 @@ PipelineOptions ReadPipelineOptions(const Scene& scene) {
   PipelineOptions o;
   o.tracking.max_features = 500;
   o.tracking.min_features = 200;
+  // Video frames are BGR: features on instruments are dropped (docs/tracking.md "Instruments").
+  o.tracking.instruments.enabled = true;
   ReadTracking(scene, &o.tracking);
   ReadLifting(scene, &o.lifting);
   ReadMechanics(scene, &o.mechanics);
@@ -298,7 +306,13 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                    {"drift_window_px", o.tracking.drift.window_px},
                    {"drift_every_frames", o.tracking.drift.every_frames},
                    {"drift_min_correlation", o.tracking.drift.min_correlation},
-                   {"drift_max_correction_px", o.tracking.drift.max_correction_px}};
+                   {"drift_max_correction_px", o.tracking.drift.max_correction_px},
+                   {"instrument_rejection", o.tracking.instruments.enabled},
+                   {"instrument_seed_max_warmth", o.tracking.instruments.mask.seed_max_warmth},
+                   {"instrument_grow_max_warmth", o.tracking.instruments.mask.grow_max_warmth},
+                   {"instrument_min_area_fraction", o.tracking.instruments.mask.min_area_fraction},
+                   {"instrument_margin_px", o.tracking.instruments.mask.margin_px},
+                   {"instrument_motion", o.tracking.instruments.motion.enabled}};
   j["lifting"] = {
       {"target", o.lifting.target == lift::LiftTarget::kPlane ? "plane" : "surface"},
       {"surface_update", o.lifting.surface_update == lift::SurfaceUpdate::kRayCastWithFallback

@@ -48,6 +48,8 @@ nlohmann::json StageTimes::ToJson() const {
 }
 
 nlohmann::json CutEvent::ToJson() const {
+  nlohmann::json polyline = nlohmann::json::array();
+  for (const Eigen::Vector3d& p : polyline_rest_mm) polyline.push_back({p.x(), p.y(), p.z()});
   return {{"frame", frame},
           {"status", status},
           {"message", message},
@@ -59,7 +61,8 @@ nlohmann::json CutEvent::ToJson() const {
           {"internal_cap_faces", internal_cap_faces},
           {"depth_fraction", depth_fraction},
           {"configuration", configuration},
-          {"welded_vertices", welded_vertices}};
+          {"welded_vertices", welded_vertices},
+          {"polyline_rest_mm", polyline}};
 }
 
 namespace {
@@ -530,6 +533,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     fs.image = &bgr;
     fs.overlay = &overlay_image;
     fs.features = &features;
+    fs.instrument_mask = &tracker.instrument_mask();
     fs.targets_mm = &targets;
     fs.anchors_mm = &anchors;
     fs.detection = topology ? &detection : nullptr;

@@ -80,6 +80,31 @@ struct Truth {
   std::unique_ptr<QuasiStaticSolver> solver;
 };
 
+// Per vertex of the unsplit mesh that the cut split: the largest distance between two of
+// its copies (mm); 0 while the copies coincide.
+std::map<int, double> CopySeparations(const Truth& truth) {
+  std::map<int, std::vector<int>> copies;
+  for (size_t v = 0; v < truth.origin.size(); ++v)
+    copies[truth.origin[v]].push_back(static_cast<int>(v));
+  std::map<int, double> separation;
+  for (const auto& kv : copies) {
+    if (kv.second.size() < 2) continue;
+    double sep = 0;
+    for (size_t i = 0; i < kv.second.size(); ++i)
+      for (size_t j = i + 1; j < kv.second.size(); ++j)
+        sep = std::max(sep, (truth.x.row(kv.second[i]) - truth.x.row(kv.second[j])).norm());
+    separation[kv.first] = sep;
+  }
+  return separation;
+}
+
+// How far the cut has opened anywhere: the largest separation over all split vertices.
+double LargestSeparation(const Truth& truth) {
+  double largest = 0;
+  for (const auto& kv : CopySeparations(truth)) largest = std::max(largest, kv.second);
+  return largest;
+}
+
 void Rebuild(const Scenario& s, const RowMatX3d& original_rest, const ProgressiveCut::Split& split,
              Truth* truth) {
   RowMatX3d new_x(split.origin.size(), 3);
@@ -261,6 +286,7 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
       volume += v0 * ratios[k];
     }
     summary.volume_ratio.push_back(volume / rest_volume);
+    if (cut) summary.opening_mm.push_back(LargestSeparation(truth));
     summary.max_volume_change =
         std::max(summary.max_volume_change, std::abs(volume / rest_volume - 1));
 
@@ -327,9 +353,6 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
       summary.cut_last_frame = std::max(summary.cut_last_frame, f);
     }
     // Separation of the copies of each split vertex, binned along the cut path.
-    std::map<int, std::vector<int>> copies;
-    for (size_t v = 0; v < truth.origin.size(); ++v)
-      copies[truth.origin[v]].push_back(static_cast<int>(v));
     double opened_length = 0;
     const std::vector<bool> open = cut->FaceOpen();
     for (size_t f = 0; f < open.size(); ++f)
@@ -337,14 +360,9 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
     const double bin_mm = 5.0;
     const int bins = std::max(1, static_cast<int>(std::ceil(opened_length / bin_mm)));
     std::vector<double> bin_opening(bins, 0.0);
-    for (const auto& kv : copies) {
-      if (kv.second.size() < 2) continue;
-      double sep = 0;
-      for (size_t i = 0; i < kv.second.size(); ++i)
-        for (size_t j = i + 1; j < kv.second.size(); ++j)
-          sep = std::max(sep, (truth.x.row(kv.second[i]) - truth.x.row(kv.second[j])).norm());
+    for (const auto& [origin, sep] : CopySeparations(truth)) {
       summary.max_cut_opening_mm = std::max(summary.max_cut_opening_mm, sep);
-      const double p = s.cut->surface.progress_mm(original_rest.row(kv.first).transpose());
+      const double p = s.cut->surface.progress_mm(original_rest.row(origin).transpose());
       if (!std::isfinite(p)) continue;
       const int b = std::clamp(static_cast<int>(p / bin_mm), 0, bins - 1);
       bin_opening[b] = std::max(bin_opening[b], sep);
@@ -354,6 +372,8 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
     summary.cut_open_fraction = opened_length > 0 ? static_cast<double>(open_bins) / bins : 0.0;
     nlohmann::json face_frames = nlohmann::json::array();
     for (int f : face_open_frame) face_frames.push_back(f);
+    nlohmann::json opening = nlohmann::json::array();
+    for (double o : summary.opening_mm) opening.push_back(o);
     cut_json["cut"] = {
         {"surface", "cut_surface.obj"},
         {"open_frames", {summary.cut_first_frame, summary.cut_last_frame}},
@@ -362,6 +382,7 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
         {"length_mm", s.cut->length_mm},
         {"coordinates", "rest pose = world frame at frame 0 (model frame of scene.json)"},
         {"face_open_frame", face_frames},
+        {"opening_mm", opening},
         {"final_opening",
          {{"fraction_of_length_over_2mm", summary.cut_open_fraction},
           {"max_separation_mm", summary.max_cut_opening_mm},

@@ -50,6 +50,9 @@ struct SynthSummary {
   double cut_open_fraction = 0;
   double max_cut_opening_mm = 0;
   int cut_first_frame = -1, cut_last_frame = -1;  // frames in which cut faces opened
+  // Per frame: the largest separation between the copies of a split vertex, over all split
+  // vertices (mm); 0 before the cut opens. Empty without a cut.
+  std::vector<double> opening_mm;
   double seconds = 0;
 };
 
