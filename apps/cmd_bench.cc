@@ -1,4 +1,4 @@
-// `arreg bench <what>`: speed benchmarks that print figures and write JSON.
+// `arreg bench <what>`: speed and accuracy benchmarks that print figures and write JSON.
 // Each benchmark lives in its own apps/bench_*.cc; this file only dispatches.
 #include <cstdio>
 #include <string>
@@ -18,6 +18,8 @@ struct Bench {
 
 // Keep in step with README.md ("Benchmarks").
 const Bench kBenches[] = {
+    {"accuracy", RunBenchAccuracy,
+     "cut detection and registration accuracy over the scene manifest (dev/test splits)"},
     {"cutting", RunBenchCutting, "beam cut: ours vs Bielser (growth, conditioning), event time"},
     {"detection", RunBenchDetection, "cut detection per frame (700 features, ~9,000 pairs)"},
     {"mechanics", RunBenchMechanics,
@@ -32,8 +34,9 @@ void PrintBenchUsage(std::FILE* out) {
   std::fprintf(out,
                "usage: arreg bench <what> [options]\n"
                "       arreg bench <what> --help\n\n"
-               "Speed benchmarks: each prints its figures (medians over repeated runs, one\n"
-               "thread) and writes them as JSON with --json OUT.\n\nbenchmarks:\n");
+               "Speed benchmarks print their figures (medians over repeated runs, one\n"
+               "thread); `accuracy` scores registration and cut detection against ground\n"
+               "truth. Each writes its figures as JSON with --json OUT.\n\nbenchmarks:\n");
   for (const auto& b : kBenches)
     if (b.name) std::fprintf(out, "  %-10s %s\n", b.name, b.summary);
 }

@@ -13,6 +13,7 @@ int RunRun(int argc, char** argv);
 int RunSynth(int argc, char** argv);
 
 // Benchmarks dispatched by RunBench (apps/bench_*.cc).
+int RunBenchAccuracy(int argc, char** argv);
 int RunBenchCutting(int argc, char** argv);
 int RunBenchDetection(int argc, char** argv);
 int RunBenchMechanics(int argc, char** argv);
