@@ -520,6 +520,37 @@ TEST(PipelineOptions, TrackingAndDetectorKeysRoundTrip) {
   }
 }
 
+// Instrument rejection is on by default in the pipeline (off in the tracker); its keys reach the
+// options and run.json, and a bad value names its key.
+TEST(PipelineOptions, InstrumentRejectionKeysRoundTrip) {
+  Scene scene;
+  scene.path = "scene.json";
+  EXPECT_FALSE(FeatureTrackerOptions().instruments.enabled);
+  EXPECT_TRUE(ReadPipelineOptions(scene).tracking.instruments.enabled);
+  scene.tracking = {{"instrument_rejection", false},     {"instrument_seed_max_warmth", 1.0},
+                    {"instrument_grow_max_warmth", 7.0}, {"instrument_min_area_fraction", 0.01},
+                    {"instrument_margin_px", 6},         {"instrument_motion", false}};
+  const PipelineOptions o = ReadPipelineOptions(scene);
+  EXPECT_FALSE(o.tracking.instruments.enabled);
+  EXPECT_DOUBLE_EQ(o.tracking.instruments.mask.seed_max_warmth, 1.0);
+  EXPECT_DOUBLE_EQ(o.tracking.instruments.mask.grow_max_warmth, 7.0);
+  EXPECT_DOUBLE_EQ(o.tracking.instruments.mask.min_area_fraction, 0.01);
+  EXPECT_EQ(o.tracking.instruments.mask.margin_px, 6);
+  EXPECT_FALSE(o.tracking.instruments.motion.enabled);
+  const nlohmann::json j = PipelineOptionsToJson(o);
+  EXPECT_EQ(j["tracking"]["instrument_rejection"], false);
+  EXPECT_DOUBLE_EQ(j["tracking"]["instrument_grow_max_warmth"].get<double>(), 7.0);
+  EXPECT_EQ(j["tracking"]["instrument_margin_px"], 6);
+  EXPECT_EQ(j["tracking"]["instrument_motion"], false);
+  scene.tracking = {{"instrument_seed_max_warmth", 9.0}};  // above grow_max_warmth
+  try {
+    ReadPipelineOptions(scene);
+    FAIL() << "a seed threshold above the growth threshold was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("seed_max_warmth"), std::string::npos) << e.what();
+  }
+}
+
 // The relative stiffness and the absolute override reach the options and run.json; bad values
 // name their key.
 TEST(PipelineOptions, SpringStiffnessKeysRoundTrip) {
