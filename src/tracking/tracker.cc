@@ -356,8 +356,11 @@ void FeatureTracker::PrepareFrame(const cv::Mat& image, const cv::Mat& roi_mask)
   if (options_.instruments.enabled && !bgr_.empty()) {
     instrument_mask_ = InstrumentMask(bgr_, options_.instruments.mask);
     if (cv::countNonZero(instrument_mask_) > 0) {
-      cv::bitwise_not(instrument_mask_, free_roi_);
-      if (!roi_mask.empty()) cv::bitwise_and(free_roi_, roi_mask, free_roi_);
+      // A new buffer: free_roi_ shares the caller's ROI until here.
+      cv::Mat free;
+      cv::bitwise_not(instrument_mask_, free);
+      if (!roi_mask.empty()) cv::bitwise_and(free, roi_mask, free);
+      free_roi_ = free;
     }
   }
   // The previous frame's pyramid is kept, not rebuilt; the buffers of the one

@@ -30,15 +30,14 @@ cv::Mat Tissue(double dx, double dy) {
   static const cv::Mat texture = testing::BandLimitedTexture(kRows + 40, kCols + 40, 5, 128, 30);
   cv::Mat shifted;
   const cv::Matx23d m(1, 0, dx - 20, 0, 1, dy - 20);
-  cv::warpAffine(texture, shifted, m, cv::Size(kCols, kRows), cv::INTER_CUBIC,
-                 cv::BORDER_REFLECT);
+  cv::warpAffine(texture, shifted, m, cv::Size(kCols, kRows), cv::INTER_CUBIC, cv::BORDER_REFLECT);
   cv::Mat bgr(kRows, kCols, CV_8UC3);
   for (int r = 0; r < kRows; ++r)
     for (int c = 0; c < kCols; ++c) {
       const double s = shifted.at<uint8_t>(r, c) / 128.0;
-      bgr.at<cv::Vec3b>(r, c) = cv::Vec3b(cv::saturate_cast<uint8_t>(80 * s),
-                                          cv::saturate_cast<uint8_t>(90 * s),
-                                          cv::saturate_cast<uint8_t>(200 * s));
+      bgr.at<cv::Vec3b>(r, c) =
+          cv::Vec3b(cv::saturate_cast<uint8_t>(80 * s), cv::saturate_cast<uint8_t>(90 * s),
+                    cv::saturate_cast<uint8_t>(200 * s));
     }
   return bgr;
 }
@@ -81,13 +80,13 @@ void DrawBar(const Bar& bar, cv::Mat* bgr, bool jaw_like_tissue = false) {
       double g = steel.at<uint8_t>(ty, tx);
       if (std::abs(q.y + 8) < 3) g = 250;  // highlight along the cylinder
       if (jaw_like_tissue && q.x < 70)
-        bgr->at<cv::Vec3b>(r, c) = cv::Vec3b(cv::saturate_cast<uint8_t>(0.55 * g),
-                                             cv::saturate_cast<uint8_t>(0.6 * g),
-                                             cv::saturate_cast<uint8_t>(1.25 * g));
+        bgr->at<cv::Vec3b>(r, c) =
+            cv::Vec3b(cv::saturate_cast<uint8_t>(0.55 * g), cv::saturate_cast<uint8_t>(0.6 * g),
+                      cv::saturate_cast<uint8_t>(1.25 * g));
       else
-        bgr->at<cv::Vec3b>(r, c) = cv::Vec3b(cv::saturate_cast<uint8_t>(1.03 * g),
-                                             cv::saturate_cast<uint8_t>(g),
-                                             cv::saturate_cast<uint8_t>(0.96 * g));
+        bgr->at<cv::Vec3b>(r, c) =
+            cv::Vec3b(cv::saturate_cast<uint8_t>(1.03 * g), cv::saturate_cast<uint8_t>(g),
+                      cv::saturate_cast<uint8_t>(0.96 * g));
     }
 }
 
@@ -199,6 +198,30 @@ TEST(InstrumentRejection, AMetalBarMovingOverTissueLosesItsFeaturesAndTissueKeep
   EXPECT_GE(on.tissue_far_kept, off.tissue_far_kept - 2);
 }
 
+// The ROI still rules: features are detected and followed only inside it and off the mask, and
+// the caller's ROI image is left as it was.
+TEST(InstrumentRejection, TheRoiIsKeptAndLeftUnchanged) {
+  const Bar bar{{200, 170}, -12};
+  cv::Mat image = Tissue(0, 0);
+  DrawBar(bar, &image);
+  cv::Mat roi(image.size(), CV_8UC1, cv::Scalar(0));
+  cv::rectangle(roi, cv::Rect(100, 60, 300, 240), cv::Scalar(255), cv::FILLED);
+  const cv::Mat roi_before = roi.clone();
+  FeatureTrackerOptions options;
+  options.instruments.enabled = true;
+  FeatureTracker tracker(options);
+  tracker.Initialize(image, roi);
+  tracker.Track(image, roi);
+  EXPECT_EQ(cv::norm(roi, roi_before, cv::NORM_INF), 0.0);
+  ASSERT_GT(tracker.num_active(), 50);
+  for (const FeatureState& f : tracker.current()) {
+    const cv::Point p(static_cast<int>(std::lround(f.position_px.x)),
+                      static_cast<int>(std::lround(f.position_px.y)));
+    EXPECT_NE(roi.at<uint8_t>(p), 0) << "feature " << f.id << " outside the ROI at " << p;
+    EXPECT_FALSE(Inside(bar.Outline(), f.position_px)) << "feature " << f.id << " on the bar";
+  }
+}
+
 // RigidInstrumentMotion: tissue deforms smoothly (a pan plus a sinusoidal stretch), a group of
 // points next to it turns and shifts as one similarity that differs from the tissue's motion.
 struct MotionScene {
@@ -279,8 +302,8 @@ TEST(RigidInstrumentMotion, AGroupMovingWithTheTissueOrTooSmallIsNotFlagged) {
   for (unsigned seed = 1; seed <= 10; ++seed) {
     // The instrument moves as the tissue under it (held still against it): nothing to tell.
     const MotionScene with_tissue = MakeMotionScene(0.0, 0.2, seed);
-    for (bool f : RigidInstrumentMotion(with_tissue.from, with_tissue.to, with_tissue.near,
-                                        options))
+    for (bool f :
+         RigidInstrumentMotion(with_tissue.from, with_tissue.to, with_tissue.near, options))
       EXPECT_FALSE(f);
   }
   // Only 3 of the group (min_group 4): not a group.
@@ -323,14 +346,16 @@ TEST(InstrumentRejection, FeaturesOnJawsTheColourMissesAreDroppedByTheirRigidMot
     }
     for (int k = 1; k <= 6; ++k) tracker.Track(frame(k, &bar));
     int still_tracked = 0;
-    for (int id : on_jaws) still_tracked += tracker.store().last_status(id) == TrackStatus::kTracked;
+    for (int id : on_jaws)
+      still_tracked += tracker.store().last_status(id) == TrackStatus::kTracked;
     return std::make_pair(static_cast<int>(on_jaws.size()), still_tracked);
   };
   const auto [jaws_off, tracked_off] = run(false);
   const auto [jaws_on, tracked_on] = run(true);
-  std::printf("features on the jaws %d: still tracked after 6 frames %d without the motion test, "
-              "%d with it\n",
-              jaws_on, tracked_off, tracked_on);
+  std::printf(
+      "features on the jaws %d: still tracked after 6 frames %d without the motion test, "
+      "%d with it\n",
+      jaws_on, tracked_off, tracked_on);
   EXPECT_EQ(jaws_off, jaws_on);
   ASSERT_GE(jaws_on, 8) << "the colour mask must leave the reddish jaws to the motion test";
   EXPECT_GE(tracked_off, 0.5 * jaws_off) << "LK follows the jaws";
@@ -359,7 +384,8 @@ TEST(InstrumentRejection, RealClipFeaturesOnTheLabelledInstrumentsAreDropped) {
   // Distance to the nearest labelled instrument (negative inside).
   auto distance = [&](int frame, cv::Point2f p) {
     double d = 1e9;
-    for (const auto& poly : polygons.at(frame)) d = std::min(d, -cv::pointPolygonTest(poly, p, true));
+    for (const auto& poly : polygons.at(frame))
+      d = std::min(d, -cv::pointPolygonTest(poly, p, true));
     return d;
   };
   const double kTissueDistancePx = InstrumentMaskOptions().margin_px + 3;
@@ -389,9 +415,9 @@ TEST(InstrumentRejection, RealClipFeaturesOnTheLabelledInstrumentsAreDropped) {
           if (distance(0, f.position_px) > kTissueDistancePx) tissue_at_0.push_back(f.position_px);
       if (frame == 0 && reject)
         for (const cv::Point2f& p : tissue_at_0)
-          tissue_at_0_masked += tracker.instrument_mask().at<uint8_t>(
-                                    static_cast<int>(std::lround(p.y)),
-                                    static_cast<int>(std::lround(p.x))) != 0;
+          tissue_at_0_masked +=
+              tracker.instrument_mask().at<uint8_t>(static_cast<int>(std::lround(p.y)),
+                                                    static_cast<int>(std::lround(p.x))) != 0;
       if (!polygons.count(frame)) continue;
       Counts& n = counts[frame];
       for (const FeatureState& f : tracker.current()) {
@@ -400,7 +426,8 @@ TEST(InstrumentRejection, RealClipFeaturesOnTheLabelledInstrumentsAreDropped) {
         // Tissue: farther from every labelled outline than the mask's margin (features whose
         // window straddles an instrument's edge are rejected on purpose) plus the labels'
         // accuracy (3 px).
-        if (d > kTissueDistancePx && (f.status == TrackStatus::kTracked || f.status == TrackStatus::kInstrument)) {
+        if (d > kTissueDistancePx &&
+            (f.status == TrackStatus::kTracked || f.status == TrackStatus::kInstrument)) {
           ++n.tissue;
           n.tissue_rejected += f.status == TrackStatus::kInstrument;
         }
@@ -431,9 +458,10 @@ TEST(InstrumentRejection, RealClipFeaturesOnTheLabelledInstrumentsAreDropped) {
     inside_off += o.inside, inside_on += n.inside;
     tissue += n.tissue, tissue_rejected += n.tissue_rejected;
   }
-  std::printf("frame-0 tissue features on the mask (not detected with rejection): %d of %zu; "
-              "features rejected as on an instrument over the clip: %d\n",
-              tissue_at_0_masked, tissue_at_0.size(), rejected_in_all);
+  std::printf(
+      "frame-0 tissue features on the mask (not detected with rejection): %d of %zu; "
+      "features rejected as on an instrument over the clip: %d\n",
+      tissue_at_0_masked, tissue_at_0.size(), rejected_in_all);
   EXPECT_GE(inside_off, 50) << "the grasper is textured: SURF and LK use it";
   EXPECT_LE(tissue_at_0_masked, 0.02 * tissue_at_0.size());
   EXPECT_LE(inside_on, 0.1 * inside_off);
