@@ -12,7 +12,8 @@
 namespace arreg::cli {
 
 int RunDebug(int argc, char** argv) {
-  std::string run_dir, out_dir, png, layers = "features,targets,springs,outliers,cut,numbers";
+  std::string run_dir, out_dir, png,
+      layers = "features,targets,springs,outliers,cut,numbers,instruments";
   std::string title;
   int frame = -1, max_frames = -1;
   OptionParser parser(
@@ -27,7 +28,7 @@ int RunDebug(int argc, char** argv) {
   parser.AddString("png", &png, "OUT.png", "write frame N with the layers drawn");
   parser.AddString("layers", &layers, "L,...",
                    "layers for --png: features, targets, springs, pairs, outliers, cut, mesh, "
-                   "internal, numbers, all, none");
+                   "internal, numbers, instruments, all, none");
   parser.AddInt("max-frames", &max_frames, "N", "viewer: at most the first N frames (-1: all)");
   parser.AddString("title", &title, "TEXT", "viewer title (default: the run folder's name)");
   parser.SetEpilog(
