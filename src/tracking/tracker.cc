@@ -411,15 +411,43 @@ void FeatureTracker::RejectRigidInstrumentMotion() {
   // candidates.
   const int ds = options_.instruments.mask.downscale;
   cv::Mat distance;
+  bool moving_mask = false;
   if (mask) {
-    cv::Mat outside;
+    cv::Mat small;
     cv::resize(
-        instrument_mask_, outside,
+        instrument_mask_, small,
         cv::Size((instrument_mask_.cols + ds - 1) / ds, (instrument_mask_.rows + ds - 1) / ds), 0,
         0, cv::INTER_NEAREST);
-    cv::bitwise_not(outside, outside);
-    cv::distanceTransform(outside, distance, cv::DIST_L2, 3);
+    cv::Mat moving = small.clone();
+    // A region that has not moved since the previous frame (a caption bar, the black corners
+    // of the endoscope's image, an instrument held still) drags nothing along: no candidates
+    // beside it, or tissue moving past it would be taken for riding it.
+    if (previous_small_mask_.size() == small.size()) {
+      cv::Mat labels, stats, centroids, kept;
+      const int n = cv::connectedComponentsWithStats(small, labels, stats, centroids, 8, CV_32S);
+      cv::bitwise_and(small, previous_small_mask_, kept);
+      std::vector<int> area(n, 0), still(n, 0), before(n, 0);
+      for (int r = 0; r < small.rows; ++r) {
+        const int* l = labels.ptr<int>(r);
+        const uint8_t* k = kept.ptr<uint8_t>(r);
+        for (int c = 0; c < small.cols; ++c) ++area[l[c]], still[l[c]] += k[c] != 0;
+      }
+      for (int k = 1; k < n; ++k) {
+        const cv::Rect box(stats.at<int>(k, cv::CC_STAT_LEFT), stats.at<int>(k, cv::CC_STAT_TOP),
+                           stats.at<int>(k, cv::CC_STAT_WIDTH),
+                           stats.at<int>(k, cv::CC_STAT_HEIGHT));
+        before[k] = cv::countNonZero(previous_small_mask_(box));
+        if (still[k] >= 0.97 * area[k] && before[k] <= 1.03 * area[k]) moving.setTo(0, labels == k);
+      }
+    }
+    previous_small_mask_ = small;
+    moving_mask = cv::countNonZero(moving) > 0;
+    cv::bitwise_not(moving, moving);
+    cv::distanceTransform(moving, distance, cv::DIST_L2, 3);
+  } else {
+    previous_small_mask_.release();
   }
+  if (!moving_mask && instrument_seen_.empty()) return;
   const float band2 = static_cast<float>(o.band_px * o.band_px);
   std::vector<int> index;
   std::vector<cv::Point2f> from, to;
@@ -429,7 +457,7 @@ void FeatureTracker::RejectRigidInstrumentMotion() {
     // Features followed into this frame: still tracked, or just found on the instrument.
     if (f.status != TrackStatus::kTracked && f.status != TrackStatus::kInstrument) continue;
     bool close = false;
-    if (mask) {
+    if (moving_mask) {
       const int x = std::clamp(static_cast<int>(f.position_px.x / ds), 0, distance.cols - 1);
       const int y = std::clamp(static_cast<int>(f.position_px.y / ds), 0, distance.rows - 1);
       close = distance.at<float>(y, x) * ds <= o.band_px;
@@ -446,7 +474,11 @@ void FeatureTracker::RejectRigidInstrumentMotion() {
   const std::vector<bool> flagged = RigidInstrumentMotion(from, to, near, o);
   for (size_t j = 0; j < index.size(); ++j) {
     FeatureState& f = current_[index[j]];
-    if (flagged[j]) f.status = TrackStatus::kInstrument;
+    if (flagged[j]) {
+      f.status = TrackStatus::kInstrument;
+      if (static_cast<int>(rode_.size()) <= f.id) rode_.resize(f.id + 1, 0);
+      rode_[f.id] = 1;
+    }
     if (f.status == TrackStatus::kInstrument) instrument_seen_.emplace_back(frame_, f.position_px);
   }
 }
@@ -579,10 +611,12 @@ void FeatureTracker::RememberLost() {
   for (int i = 0; i < static_cast<int>(current_.size()); ++i) {
     const TrackStatus status = current_[i].status;
     // Outliers moved implausibly: they are dropped for good (thesis 7.4.1). So are features
-    // on an instrument: one that rode it would be found again on it (its jaws may escape the
-    // colour mask), and tissue dragged onto it by its edge has left its place.
-    if (status == TrackStatus::kTracked || status == TrackStatus::kOutlierSpatioTemporal ||
-        status == TrackStatus::kInstrument)
+    // that rode an instrument (the motion test): they would be found again on it, on parts the
+    // colour mask misses. One that landed on the mask is tissue the instrument covers or drags:
+    // it may be found again off the mask once uncovered.
+    if (status == TrackStatus::kTracked || status == TrackStatus::kOutlierSpatioTemporal) continue;
+    if (status == TrackStatus::kInstrument && current_[i].id < static_cast<int>(rode_.size()) &&
+        rode_[current_[i].id])
       continue;
     // Where it was last followed (the frame before): LK's position in this
     // frame is what failed. Its look there verifies a re-identification.
@@ -595,7 +629,8 @@ void FeatureTracker::RememberLost() {
     } else {
       SamplePatch(previous_pyramid_.float_image(0), lost.position_px, options_.lk.window_px,
                   &lost.patch);
-      if (options_.reidentify.reacquire_by_lk)
+      // Not by LK after an instrument covered it: its last look may be the instrument's edge.
+      if (options_.reidentify.reacquire_by_lk && status != TrackStatus::kInstrument)
         SamplePatch(previous_pyramid_.float_image(0), lost.position_px,
                     options_.lk.window_px + 2 * kReacquireMarginPx, &lost.surroundings);
     }
@@ -1018,6 +1053,8 @@ TrackFrameSummary FeatureTracker::Initialize(const cv::Mat& image, const cv::Mat
   previous_position_.clear();
   lost_.clear();
   instrument_seen_.clear();
+  previous_small_mask_.release();
+  rode_.clear();
   acquired_look_.clear();
   anchors_.clear();
   reference_descriptors_.release();

@@ -16,9 +16,9 @@
 namespace arreg {
 
 // Why a feature is (no longer) followed. Anything but kTracked takes the
-// feature out of the active set: an outlier or a feature on an instrument for
-// good, the others until it is re-identified (ReidentifyOptions), which
-// continues the same id.
+// feature out of the active set: an outlier or a feature that rode an
+// instrument for good, the others until it is re-identified (ReidentifyOptions),
+// which continues the same id.
 enum class TrackStatus : uint8_t {
   kTracked = 0,            // followed into this frame (or detected in it)
   kLostBorder,             // left the image or came within border_px of its edge
@@ -348,6 +348,11 @@ class FeatureTracker {
   // colour mask misses, e.g. jaws mirroring the tissue, are found by their features).
   static constexpr int kInstrumentMemoryFrames = 3;
   std::vector<std::pair<int, cv::Point2f>> instrument_seen_;
+  // The previous frame's instrument mask shrunk by its downscale (static regions are no
+  // instruments for the motion test).
+  cv::Mat previous_small_mask_;
+  // Per id: dropped by the motion test (it rode an instrument; never re-identified).
+  std::vector<uint8_t> rode_;
   // Anchors feature `id` at `position_px` in the current frame.
   void Anchor(int id, cv::Point2f position_px);
   // Moves the tracked features of current_ to where their anchors align.
