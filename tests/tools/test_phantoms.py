@@ -141,8 +141,9 @@ def _closed_volume(verts, faces):
 
 class MeshTest(unittest.TestCase):
     def test_band_surface_closed_with_cut_walls(self):
-        for name in ("stretch", "precut", "cut-curved", "tear"):
-            ph = fields.draw_phantom(name, 2)
+        for name, seed in [("stretch", 1)] + [(n, s) for n in fields.CUT_SCENARIOS
+                                              for s in (1, 2, 3)]:
+            ph = fields.draw_phantom(name, seed)
             s = meshes.BandSurface(ph, 2.0)
             f = s.faces
             e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
@@ -199,6 +200,33 @@ class MeshTest(unittest.TestCase):
                 self.assertTrue(((v[:, 1] > 0) & (v[:, 1] < b.H)).all())
                 self.assertTrue((np.abs(v[:, 2]) < b.T / 2).all())
                 self.assertGreater(_closed_volume(v, f), 0.0)
+
+    def test_internal_structure_torn_only_across_the_opened_cut(self):
+        """A vessel crossing the cut loses triangles across the opened part (they would span
+        the gap) and keeps none stretched beyond the tissue's own strain."""
+        crossed = 0
+        for seed in range(1, 30):
+            ph = fields.draw_phantom("cut-v", seed)
+            if ph.internal["kind"] != "vessel":
+                continue
+            v, f = meshes.internal_mesh(ph)
+            side = ph.sides(v)
+            x = ph.deform(v, side, 1.0)
+            kept = meshes.internal_faces_at(ph, v, f, 1.0)
+            self.assertEqual(len(meshes.internal_faces_at(ph, v, f, 0.0)), len(f))
+            if len(kept) == len(f):
+                continue
+            crossed += 1
+            e = np.concatenate([kept[:, [0, 1]], kept[:, [1, 2]], kept[:, [2, 0]]])
+            ratio = (np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1) /
+                     np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1))
+            self.assertLess(ratio.max(), 3.0, f"seed {seed}")
+            # What is dropped straddles the cut: its corners lie on both sides.
+            dropped = [k for k in range(len(f)) if not (kept == f[k]).all(axis=1).any()]
+            self.assertTrue(all(len(set(side[f[k]])) == 2 for k in dropped), f"seed {seed}")
+            if crossed >= 3:
+                break
+        self.assertGreater(crossed, 0)
 
     def test_mask_rasteriser_against_analytic_square(self):
         # A square 20 px wide centred on the image, seen fronto-parallel at 100 mm.

@@ -75,6 +75,42 @@ def _rectangle_outline(band, spacing, extra=()):
     return np.array(pts)
 
 
+def _fan_sides(tris, v, path_neighbours, tri_side):
+    """The triangles around vertex v split into the groups that the path's edges at v separate
+    (two for a vertex of the path), each with its side: the majority of its triangles'
+    centroid test, the two groups forced apart. Grouping by the fan's topology, not by each
+    centroid, keeps thin triangles at a sharp bend of a jagged path on the right side."""
+    around = np.nonzero((tris == v).any(axis=1))[0]
+    parent = {int(k): int(k) for k in around}
+
+    def find(k):
+        while parent[k] != k:
+            parent[k] = parent[parent[k]]
+            k = parent[k]
+        return k
+
+    by_edge = {}
+    for k in around:
+        for q in tris[k]:
+            q = int(q)
+            if q != v and q not in path_neighbours:
+                by_edge.setdefault(q, []).append(int(k))
+    for ks in by_edge.values():
+        for k in ks[1:]:
+            parent[find(k)] = find(ks[0])
+    groups = {}
+    for k in around:
+        groups.setdefault(find(int(k)), []).append(int(k))
+    groups = sorted(groups.values(), key=len, reverse=True)
+    votes = [int(np.sign(tri_side[g].sum())) or 1 for g in groups]
+    if len(groups) == 2 and votes[0] == votes[1]:
+        # Both groups vote alike: the clearer vote wins, the other group takes the other side.
+        strength = [abs(tri_side[g].sum()) / len(g) for g in groups]
+        weaker = int(np.argmin(strength))
+        votes[weaker] = -votes[1 - weaker]
+    return list(zip(groups, votes))
+
+
 class BandSurface:
     """The band's closed render surface, split along the final cut path.
 
@@ -116,18 +152,18 @@ class BandSurface:
             inverse = {int(o): i for i, o in enumerate(origin) if o >= 0}
             cut_out = [inverse[i] for i in cut_index]
             sides2 = phantom.sides(np.c_[out_pts, np.zeros(n2)])
-            centroid = out_pts[tris].mean(axis=1)
-            tri_side = cut.side(centroid)
+            tri_side = cut.side(out_pts[tris].mean(axis=1))
             # Every path vertex but the tip gets a copy for the triangles on side -1.
             copies = {}
             for v in cut_out[:-1]:
                 copies[v] = n2 + len(copies)
             new_pts = [out_pts] + [out_pts[list(copies)]]
-            for k in np.nonzero(tri_side < 0)[0]:
-                for c in range(3):
-                    v = int(tris[k, c])
-                    if v in copies:
-                        tris[k, c] = copies[v]
+            for i, v in enumerate(cut_out[:-1]):
+                neighbours = {cut_out[i + 1]} | ({cut_out[i - 1]} if i > 0 else set())
+                for group, side in _fan_sides(tris, v, neighbours, tri_side):
+                    if side < 0:
+                        for k in group:
+                            tris[k][tris[k] == v] = copies[v]
             out_pts = np.concatenate(new_pts)
             sides2 = np.concatenate([sides2, -np.ones(len(copies), dtype=int)])
             for v in copies:

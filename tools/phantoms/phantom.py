@@ -177,7 +177,9 @@ def _generate_into(args, tmp, start):
 
     W, H, n = args.width, args.height, args.frames
     ph = fields.draw_phantom(args.scenario, args.seed)
-    rng = np.random.default_rng([args.seed, 101])
+    # Every random stream depends on the scenario too: one seed gives unrelated scenes.
+    key = args.seed * len(fields.SCENARIOS) + list(fields.SCENARIOS).index(args.scenario)
+    rng = np.random.default_rng([key, 101])
     surface = meshes.BandSurface(ph, args.mesh_mm)
     model_v, model_t = meshes.model_tets(ph.band, args.model_mm)
     inner_v, inner_f = meshes.internal_mesh(ph)
@@ -205,13 +207,13 @@ def _generate_into(args, tmp, start):
 
     # Blender scene.
     scene = scene_bpy.reset_scene()
-    scene_bpy.configure_render(scene, W, H, args.samples, args.seed)
-    mats = [scene_bpy.tissue_material("tissue", args.seed),
-            scene_bpy.tissue_material("tissue-inner", args.seed, inner=True)]
+    scene_bpy.configure_render(scene, W, H, args.samples, key)
+    mats = [scene_bpy.tissue_material("tissue", key),
+            scene_bpy.tissue_material("tissue-inner", key, inner=True)]
     band_obj = scene_bpy.mesh_object("band", surface.vertices_rest, surface.faces, mats,
                                      face_material=(surface.face_kind > 0).astype(np.int32),
                                      rest=surface.vertices_rest)
-    bg = scene_bpy.background_sheet(ph.band, args.seed, bg_depth)
+    bg = scene_bpy.background_sheet(ph.band, key, bg_depth)
     inst = None
     if ph.instrument is not None:
         inst = scene_bpy.instrument(scene_bpy.metal_material())
@@ -248,6 +250,8 @@ def _generate_into(args, tmp, start):
                     jaw = 10.0
                 scene_bpy.pose_instrument(inst[0], inst[1], tip, axis, jaw)
             scene.frame_set(frame)
+            # A new path-tracing noise pattern every frame (no fixed pattern to track).
+            scene.cycles.seed = (key * 7919 + frame) % 2**31
             png = os.path.join(render_dir, meshes.frame_name(frame, "png"))
             t0 = time.time()
             scene_bpy.render_frame(scene, png)
@@ -255,7 +259,7 @@ def _generate_into(args, tmp, start):
             img = scene_bpy.read_png_rgb(png)
             os.remove(png)
             # Sensor noise: shot noise growing with the signal plus read noise.
-            nrng = np.random.default_rng([args.seed, 202, frame])
+            nrng = np.random.default_rng([key, 202, frame])
             sigma = np.sqrt(noise_gain * img + noise_read**2)
             img = np.clip(np.rint(img + sigma * nrng.standard_normal(img.shape)), 0, 255)
             img = img.astype(np.uint8)

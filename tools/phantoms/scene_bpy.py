@@ -269,7 +269,7 @@ def set_vertices(obj, x):
 def background_sheet(band, seed, depth_mm):
     """A large wavy sheet of other tissue behind the band (static but for a slow breathing)."""
     rng = np.random.default_rng([seed, 13])
-    n, size = 90, 600.0
+    n, size = 140, 1600.0
     xs = np.linspace(-size / 2, size / 2, n)
     ys = np.linspace(-size / 2, size / 2, n) + band.H / 2
     X, Y = np.meshgrid(xs, ys)
