@@ -397,6 +397,9 @@ TEST(InstrumentRejection, RealClipFeaturesOnTheLabelledInstrumentsAreDropped) {
   // and how many of them the mask of the run with it covers (not detected there).
   std::vector<cv::Point2f> tissue_at_0;
   int tissue_at_0_masked = 0, rejected_in_all = 0;
+  // Features followed to the last frame (62) off the frame-60 instruments (the instruments move
+  // little at the end), per run: [0] without rejection, [1] with it.
+  int tissue_survivors[2] = {0, 0}, instrument_survivors[2] = {0, 0};
   auto run = [&](bool reject) {
     FeatureTrackerOptions options;
     options.instruments.enabled = reject;
@@ -444,6 +447,13 @@ TEST(InstrumentRejection, RealClipFeaturesOnTheLabelledInstrumentsAreDropped) {
         n.mask_on_tissue = 1.0 * cv::countNonZero(outside) / cv::countNonZero(not_truth);
       }
     }
+    for (const FeatureState& f : tracker.current()) {
+      if (f.status != TrackStatus::kTracked) continue;
+      if (distance(60, f.position_px) > 4)
+        ++tissue_survivors[reject];
+      else
+        ++instrument_survivors[reject];
+    }
     return counts;
   };
   const std::map<int, Counts> off = run(false), on = run(true);
@@ -462,6 +472,12 @@ TEST(InstrumentRejection, RealClipFeaturesOnTheLabelledInstrumentsAreDropped) {
       "frame-0 tissue features on the mask (not detected with rejection): %d of %zu; "
       "features rejected as on an instrument over the clip: %d\n",
       tissue_at_0_masked, tissue_at_0.size(), rejected_in_all);
+  std::printf(
+      "followed to the end: off the instruments %d without rejection, %d with; on them %d, %d\n",
+      tissue_survivors[0], tissue_survivors[1], instrument_survivors[0], instrument_survivors[1]);
+  // Measured: 42 and 39 tissue survivors, 8 and 0 on the instruments.
+  EXPECT_EQ(instrument_survivors[1], 0);
+  EXPECT_GE(tissue_survivors[1], 0.85 * tissue_survivors[0]);
   EXPECT_GE(inside_off, 50) << "the grasper is textured: SURF and LK use it";
   EXPECT_LE(tissue_at_0_masked, 0.02 * tissue_at_0.size());
   EXPECT_LE(inside_on, 0.1 * inside_off);
