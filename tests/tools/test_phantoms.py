@@ -10,7 +10,6 @@ ground-truth surface, and `arreg run` + `arreg eval` on it when --arreg is given
 """
 
 import json
-import math
 import os
 import shutil
 import subprocess
@@ -252,6 +251,14 @@ def _load_json(path):
         return json.load(fh)
 
 
+def _scene_camera(scene_dir):
+    """(fx, fy, cx, cy), camera_from_world rotation and translation of a scene's camera."""
+    cam = _load_json(os.path.join(scene_dir, "scene.json"))["camera"]
+    K = (cam["fx"], cam["fy"], cam["cx"], cam["cy"])
+    pose = cam["camera_from_world"]
+    return K, np.array(pose["rotation"]), np.array(pose["translation_mm"])
+
+
 def _read_obj(path):
     v, f = [], []
     with open(path) as fh:
@@ -338,11 +345,7 @@ class RenderTest(unittest.TestCase):
         import scene_bpy
 
         for name, d in self.scenes.items():
-            scene_json = _load_json(os.path.join(d, "scene.json"))
-            cam = scene_json["camera"]
-            K = (cam["fx"], cam["fy"], cam["cx"], cam["cy"])
-            R = np.array(cam["camera_from_world"]["rotation"])
-            tv = np.array(cam["camera_from_world"]["translation_mm"])
+            K, R, tv = _scene_camera(d)
             for frame in (0, 2):
                 v, f = _read_obj(os.path.join(d, "gt", "surface", f"{frame:06d}.obj"))
                 scene = scene_bpy.reset_scene()
@@ -382,10 +385,7 @@ class RenderTest(unittest.TestCase):
         surface once on its way in, so the silhouette's area is the sum of the projected areas
         of the triangles that face the camera (to within the pixels on the outline)."""
         for name, d in self.scenes.items():
-            cam = _load_json(os.path.join(d, "scene.json"))["camera"]
-            K = (cam["fx"], cam["fy"], cam["cx"], cam["cy"])
-            R = np.array(cam["camera_from_world"]["rotation"])
-            tv = np.array(cam["camera_from_world"]["translation_mm"])
+            K, R, tv = _scene_camera(d)
             for frame in (0, 2):
                 v, f = _read_obj(os.path.join(d, "gt", "surface", f"{frame:06d}.obj"))
                 uv, _ = meshes.project(K, R, tv, v)
