@@ -28,6 +28,9 @@ class UsageError(Exception):
     pass
 
 
+_progress_line_open = False  # a "\r" progress line waits for its newline
+
+
 class _Parser(argparse.ArgumentParser):
     def error(self, message):
         raise UsageError(message)
@@ -173,6 +176,7 @@ def generate(args):
 
 
 def _generate_into(args, tmp, start):
+    global _progress_line_open
     import scene_bpy
 
     W, H, n = args.width, args.height, args.frames
@@ -285,8 +289,10 @@ def _generate_into(args, tmp, start):
                 el = time.time() - start
                 print(f"\r{PROG}: frame {frame + 1}/{n}  {el:.0f} s", end="", file=sys.stderr,
                       flush=True)
-        if not args.quiet:
+                _progress_line_open = True
+        if _progress_line_open:
             print("", file=sys.stderr)
+            _progress_line_open = False
     finally:
         enc.stdin.close()
         rc = enc.wait()
@@ -413,8 +419,7 @@ def main(argv):
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
     except (RuntimeError, OSError, ValueError) as e:
-        print(f"\n{PROG}: error: {e}" if not args.quiet else f"{PROG}: error: {e}",
-              file=sys.stderr)
+        print(("\n" if _progress_line_open else "") + f"{PROG}: error: {e}", file=sys.stderr)
         return 1
     return 0
 
