@@ -389,11 +389,17 @@ bool FeatureTracker::IsSpecular(cv::Point2f p) const {
   return false;
 }
 
-bool FeatureTracker::OnInstrument(cv::Point2f p) const {
-  if (instrument_mask_.empty()) return false;
+namespace {
+// Whether the pixel nearest to p is set in a non-empty CV_8UC1 mask (false outside it).
+bool MaskHas(const cv::Mat& mask, cv::Point2f p) {
   const int x = static_cast<int>(std::lround(p.x)), y = static_cast<int>(std::lround(p.y));
-  if (x < 0 || y < 0 || x >= instrument_mask_.cols || y >= instrument_mask_.rows) return false;
-  return instrument_mask_.at<uint8_t>(y, x) != 0;
+  if (x < 0 || y < 0 || x >= mask.cols || y >= mask.rows) return false;
+  return mask.at<uint8_t>(y, x) != 0;
+}
+}  // namespace
+
+bool FeatureTracker::OnInstrument(cv::Point2f p) const {
+  return !instrument_mask_.empty() && MaskHas(instrument_mask_, p);
 }
 
 void FeatureTracker::RejectRigidInstrumentMotion() {
@@ -484,10 +490,7 @@ void FeatureTracker::RejectRigidInstrumentMotion() {
 }
 
 bool FeatureTracker::InsideRoi(cv::Point2f p, const cv::Mat& roi_mask) const {
-  if (roi_mask.empty()) return true;
-  const int x = static_cast<int>(std::lround(p.x)), y = static_cast<int>(std::lround(p.y));
-  if (x < 0 || y < 0 || x >= roi_mask.cols || y >= roi_mask.rows) return false;
-  return roi_mask.at<uint8_t>(y, x) != 0;
+  return roi_mask.empty() || MaskHas(roi_mask, p);
 }
 
 int FeatureTracker::Detect(const cv::Mat& roi_mask) {
