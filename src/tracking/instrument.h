@@ -22,13 +22,14 @@ struct InstrumentMaskOptions {
   // Hue direction theta of tissue in the a*b* plane, degrees (0: red, 90: yellow). Tissue hues
   // span pink (-10) to yellow fat (70). Default 30.
   double hue_direction_deg = 30.0;
-  // A seed pixel's warmth is below this (L*a*b* units): between the instruments' median (-5)
-  // and tissue's 1st percentile (3.5-7) on the real clip. Default 2.
-  double seed_max_warmth = 2.0;
-  // Pixels of a region grown from seeds have warmth below this: the instruments' 80th
-  // percentile, so reflections of tissue on metal join while pale tissue beside them (warmth
-  // 3-15) does not grow into a region. Default 8.
-  double grow_max_warmth = 8.0;
+  // A seed pixel's warmth is below this (L*a*b* units): above the median of instruments
+  // (real clip -5; the thin steel shaft of the Blender phantoms, which mirrors warm light, 2-8)
+  // and near tissue's 1st percentile (real clip 3.5-7). Default 4.
+  double seed_max_warmth = 4.0;
+  // Pixels of a region grown from seeds have warmth below this, so reflections of tissue on
+  // metal join while the pale tissue beside an instrument (warmth 3-15) does not grow into one
+  // region with it. Default 10.
+  double grow_max_warmth = 10.0;
   // Seed pixels are at least this light (L* on OpenCV's 0..255 scale): dark tissue (shadows,
   // vignetting) has little chroma of any hue, but may join a region grown from lit seeds.
   // Default 40.

@@ -542,7 +542,7 @@ TEST(PipelineOptions, InstrumentRejectionKeysRoundTrip) {
   EXPECT_DOUBLE_EQ(j["tracking"]["instrument_grow_max_warmth"].get<double>(), 7.0);
   EXPECT_EQ(j["tracking"]["instrument_margin_px"], 6);
   EXPECT_EQ(j["tracking"]["instrument_motion"], false);
-  scene.tracking = {{"instrument_seed_max_warmth", 9.0}};  // above grow_max_warmth
+  scene.tracking = {{"instrument_seed_max_warmth", 11.0}};  // above grow_max_warmth (10)
   try {
     ReadPipelineOptions(scene);
     FAIL() << "a seed threshold above the growth threshold was accepted";
