@@ -438,12 +438,21 @@ void FeatureTracker::RejectRigidInstrumentMotion() {
         const uint8_t* k = kept.ptr<uint8_t>(r);
         for (int c = 0; c < small.cols; ++c) ++area[l[c]], still[l[c]] += k[c] != 0;
       }
+      std::vector<uint8_t> is_static(n, 0);
+      bool any = false;
       for (int k = 1; k < n; ++k) {
         const cv::Rect box(stats.at<int>(k, cv::CC_STAT_LEFT), stats.at<int>(k, cv::CC_STAT_TOP),
                            stats.at<int>(k, cv::CC_STAT_WIDTH),
                            stats.at<int>(k, cv::CC_STAT_HEIGHT));
         before[k] = cv::countNonZero(previous_small_mask_(box));
-        if (still[k] >= 0.97 * area[k] && before[k] <= 1.03 * area[k]) moving.setTo(0, labels == k);
+        is_static[k] = still[k] >= 0.97 * area[k] && before[k] <= 1.03 * area[k];
+        any = any || is_static[k];
+      }
+      for (int r = 0; any && r < small.rows; ++r) {
+        const int* l = labels.ptr<int>(r);
+        uint8_t* m = moving.ptr<uint8_t>(r);
+        for (int c = 0; c < small.cols; ++c)
+          if (is_static[l[c]]) m[c] = 0;
       }
     }
     previous_small_mask_ = small;
