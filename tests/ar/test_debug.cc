@@ -7,6 +7,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "ar/debug/frame_render.h"
 #include "ar/debug/recorder.h"
@@ -223,6 +224,41 @@ TEST(RenderDebugFrame, DrawsTheLayersOverTheRecordedFrame) {
   cv::Mat red;
   cv::inRange(cv::imread(out), cv::Scalar(0, 0, 200), cv::Scalar(60, 60, 255), red);
   EXPECT_GT(cv::countNonZero(red), 20);
+}
+
+// The instrument mask's outline goes into the record (within the 1.5 px of its simplification)
+// and is drawn in orange by the instruments layer only; without a mask the list is empty.
+TEST(DebugRecorder, InstrumentOutlinesAreRecordedAndDrawn) {
+  cv::Mat mask(120, 160, CV_8UC1, cv::Scalar(0));
+  cv::rectangle(mask, cv::Rect(40, 30, 60, 50), cv::Scalar(255), cv::FILLED);
+  pipeline::FrameState frame;
+  frame.instrument_mask = &mask;
+  const PinholeCamera camera = fixture::MakeCamera();
+  nlohmann::json rec = MakeFrameRecord(frame, camera, cutting::CutDetectorOptions(), 0);
+  ASSERT_EQ(rec["instruments"].size(), 1u);
+  const auto& outline = rec["instruments"][0];
+  std::vector<cv::Point> poly;
+  for (size_t k = 0; k + 1 < outline.size(); k += 2)
+    poly.emplace_back(outline[k].get<int>(), outline[k + 1].get<int>());
+  const cv::Rect box = cv::boundingRect(poly);
+  EXPECT_NEAR(box.x, 40, 1.5);
+  EXPECT_NEAR(box.y, 30, 1.5);
+  EXPECT_NEAR(box.br().x, 100, 1.5);
+  EXPECT_NEAR(box.br().y, 80, 1.5);
+  rec["features"] = nlohmann::json::array();
+  rec["detection"] = nullptr;
+  rec["cut_surface"] = nullptr;
+  cv::Mat drawn(120, 160, CV_8UC3, cv::Scalar(0, 0, 0)), none = drawn.clone();
+  DrawDebugLayers(rec, nullptr, DebugLayers::Parse("instruments"), &drawn);
+  DrawDebugLayers(rec, nullptr, DebugLayers::Parse("features"), &none);
+  cv::Mat orange;
+  cv::inRange(drawn, cv::Scalar(0, 100, 200), cv::Scalar(60, 180, 255), orange);
+  EXPECT_GT(cv::countNonZero(orange), 150);  // the rectangle's perimeter is 220 px
+  EXPECT_EQ(cv::countNonZero(orange(cv::Rect(50, 40, 40, 30))), 0);  // an outline, not filled
+  EXPECT_EQ(cv::norm(none, cv::NORM_INF), 0.0);
+  frame.instrument_mask = nullptr;
+  EXPECT_TRUE(
+      MakeFrameRecord(frame, camera, cutting::CutDetectorOptions(), 0)["instruments"].empty());
 }
 
 TEST(RenderDebugFrame, BadLayerAndMissingFrameAreClearErrors) {
