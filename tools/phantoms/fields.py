@@ -500,7 +500,7 @@ def _straight_path(band, rng, edge, length, angle_deg):
     return mouth, d, np.array([mouth, mouth + length * d])
 
 
-def _flap_angles(cut, band, alpha, edge):
+def _flap_angles(alpha, edge):
     """Per-side turn angles: for a cut from a side edge the flap towards the held bottom edge
     turns less (it is anchored closer)."""
     if edge == "top":
@@ -656,7 +656,7 @@ def draw_phantom(name, seed):
         pts = _resample(pts, 1.0)
         cut = CutPath(pts, band, progress, precut, desc)
         cut.description = desc.format(L=cut.length_mm)
-        a_left, a_right = _flap_angles(cut, band, alpha, edge)
+        a_left, a_right = _flap_angles(alpha, edge)
         opening = FlapOpening(cut, a_left, a_right, prof, hold_mm=0.4 * band.H,
                               curl_mm=rng.uniform(1.0, 3.0))
         if edge == "top" or name == "cut-v":
@@ -719,8 +719,8 @@ def instrument_pose(phantom, t):
         cut = phantom.cut
         f = cut.front(t)
         p = cut.point_at(f)
-        side = cut.side(p[None, :] + 1e-3)
-        tip = phantom.deform(np.array([[p[0], p[1], T / 2]]), side, t)[0]
+        # At the front both sides' copies coincide: either side label gives the point.
+        tip = phantom.deform(np.array([[p[0], p[1], T / 2]]), np.ones(1), t)[0]
         tip = tip + np.array([0.0, 0.0, inst["hover_mm"]])
         done = smoothstep(0.0, 0.1, t - _done_time(phantom))
         return tip + axis * 60.0 * done, axis
