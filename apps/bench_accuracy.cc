@@ -93,17 +93,11 @@ void RunTool(const std::vector<std::string>& args) {
   }
   ARREG_CHECK_INPUT(WIFEXITED(status) && WEXITSTATUS(status) == 0, args[0], "",
                     WIFEXITED(status) ? "exited with code " + std::to_string(WEXITSTATUS(status))
-                                      : std::string("was killed by a signal"),
-                    " (see the scene's log)");
+                                      : std::string("was killed by a signal"));
 }
 
-// The scene's folder in the cache, generated when missing or incomplete.
-std::string EnsureScene(const eval::BenchScene& b, const Settings& s) {
-  const std::string dir = s.cache + "/scenes/" + b.CacheKey();
-  if (FileExists(dir + "/" + kCompleteMarker) && FileExists(dir + "/scene.json")) return dir;
-  std::error_code ec;
-  fs::remove_all(dir, ec);  // an interrupted generation
-  CreateDirectories(dir);
+// Writes the scene into `dir` with its source's generator.
+void Generate(const eval::BenchScene& b, const Settings& s, const std::string& dir) {
   if (b.source == "synth") {
     synth::SynthOptions o;
     o.scenario = b.scenario;
@@ -128,6 +122,21 @@ std::string EnsureScene(const eval::BenchScene& b, const Settings& s) {
              std::to_string(b.params.width) + "x" + std::to_string(b.params.height)});
     ARREG_CHECK_INPUT(FileExists(dir + "/scene.json"), s.phantom_tool, "",
                       "wrote no scene.json in ", dir);
+  }
+}
+
+// The scene's folder in the cache, generated when missing or incomplete.
+std::string EnsureScene(const eval::BenchScene& b, const Settings& s) {
+  const std::string dir = s.cache + "/scenes/" + b.CacheKey();
+  if (FileExists(dir + "/" + kCompleteMarker) && FileExists(dir + "/scene.json")) return dir;
+  std::error_code ec;
+  fs::remove_all(dir, ec);  // an interrupted generation
+  CreateDirectories(dir);
+  try {
+    Generate(b, s, dir);
+  } catch (...) {
+    fs::remove_all(dir, ec);  // no partial scene stays behind
+    throw;
   }
   const nlohmann::json marker = {{"name", b.name},
                                  {"source", b.source},
@@ -166,14 +175,14 @@ eval::SceneResult ProcessScene(const eval::BenchScene& b, const Settings& s,
                                const std::function<void(const std::string&)>& say) {
   const auto start = std::chrono::steady_clock::now();
   eval::SceneResult result = eval::SceneResult::For(b);
+  const std::string runs = s.cache + "/runs/" + b.name;
+  const std::string with = runs + "/topology", without = runs + "/no-topology";
   try {
     say("scene");
     const std::string dir = EnsureScene(b, s);
     const Scene scene = ReadScene(dir + "/scene.json");
     ARREG_CHECK_INPUT(!scene.ground_truth_path.empty(), dir + "/scene.json", "ground_truth",
                       "the benchmark needs a ground-truth folder");
-    const std::string runs = s.cache + "/runs/" + b.name;
-    const std::string with = runs + "/topology", without = runs + "/no-topology";
     say("run with topology");
     RunRegistration(scene, with, true, 0);
     say("run without topology");
@@ -187,14 +196,14 @@ eval::SceneResult ProcessScene(const eval::BenchScene& b, const Settings& s,
     eval::ScoreCuts(eval::ReadAppliedCuts(with + "/frames.jsonl"),
                     eval::ReadTrueCut(scene.ground_truth_path), s.metrics, &result);
     eval::ScoreRegistration(ew, eo_run, &result);
-    if (!s.keep_runs) {
-      std::error_code ec;
-      fs::remove_all(with, ec);
-      fs::remove_all(without, ec);
-    }
   } catch (const std::exception& e) {
     result.status = "failed";
     result.reason = e.what();
+  }
+  if (!s.keep_runs) {
+    std::error_code ec;
+    fs::remove_all(with, ec);
+    fs::remove_all(without, ec);
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
