@@ -545,6 +545,15 @@ TEST(CutHandler, CrackEndsNearTheOutlineAreCarriedAcrossIt) {
     const CutEvent ev = handler.Apply(0, line, line, eye, model.Targets());
     ASSERT_EQ(ev.status, "cut") << ev.message;
     ConnectedComponents(model.state.RestMesh(), Adjacency::kVertex, &pieces[c]);
+    // The event records the line S was extruded from, in rest coordinates: in the rest
+    // configuration with its end carried across the outline at x = 40, in the current one the
+    // given frame-0 points.
+    ASSERT_GE(ev.polyline_rest_mm.size(), line.size());
+    EXPECT_EQ(ev.polyline_rest_mm.front(), line.front());
+    if (c == 0)
+      EXPECT_GT(ev.polyline_rest_mm.back().x(), 40.0);
+    else
+      EXPECT_EQ(ev.polyline_rest_mm, line);
   }
   EXPECT_EQ(pieces[0], 2);
   EXPECT_EQ(pieces[1], 1);  // the current configuration does not carry the end

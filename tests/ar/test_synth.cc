@@ -317,6 +317,11 @@ TEST(Generator, PrecutOpensOverMostOfItsLength) {
   EXPECT_GE(s.cut_open_fraction, 0.5);
   // Held at 186 % to the last frame (thesis 7.7.1), the slit gapes wide open at the end.
   EXPECT_GT(s.max_cut_opening_mm, 30.0);
+  // The opening per frame: closed at rest in frame 0, the final separation at the last frame.
+  ASSERT_EQ(s.opening_mm.size(), 6u);
+  EXPECT_NEAR(s.opening_mm.front(), 0.0, 1e-9);
+  EXPECT_DOUBLE_EQ(s.opening_mm.back(), s.max_cut_opening_mm);
+  EXPECT_GT(s.opening_mm[3], 2.0);
   EXPECT_GT(s.final_truth_vertices, s.truth_vertices);
   EXPECT_LT(s.max_volume_change, 0.02);
   const std::string cut = Slurp(d + "/gt/cut.json");
@@ -339,6 +344,10 @@ TEST(Generator, CutWhileFilmedOpensProgressively) {
   EXPECT_GE(s.cut_open_fraction, 0.5);
   // Torn while pulled to 180 %, the halves splay into a V (thesis 7.7.2): ~80 mm at the top.
   EXPECT_GT(s.max_cut_opening_mm, 60.0);
+  // Closed before the cut starts, open once its faces have opened.
+  ASSERT_EQ(s.opening_mm.size(), 21u);
+  for (int f = 0; f < s.cut_first_frame; ++f) EXPECT_EQ(s.opening_mm[f], 0.0) << "frame " << f;
+  EXPECT_GT(s.opening_mm.back(), 60.0);
 }
 
 TEST(Generator, RejectsUnknownScenarioAndBadOptions) {
