@@ -109,6 +109,11 @@ void CutDetectorOptions::Check() const {
                     "must be > 0, got ", probe_pair_length_factor);
   ARREG_CHECK_INPUT(positive(probe_outlier_factor), "", "cut_detector.probe_outlier_factor",
                     "must be > 0, got ", probe_outlier_factor);
+  separation.Check();
+  ARREG_CHECK_INPUT(positive(separation_radius_factor), "", "cut_detector.separation_radius_factor",
+                    "must be > 0, got ", separation_radius_factor);
+  ARREG_CHECK_INPUT(growth_cone_deg > 0.0 && growth_cone_deg <= 90.0, "",
+                    "cut_detector.growth_cone_deg", "must be in (0, 90], got ", growth_cone_deg);
   ARREG_CHECK_INPUT(positive(probe_max_lead_factor), "", "cut_detector.probe_max_lead_factor",
                     "must be > 0, got ", probe_max_lead_factor);
 }
@@ -301,6 +306,8 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   result->pairs_bridged = 0;
   result->probe_pairs = 0;
   result->probe_outliers = 0;
+  result->separation_tests.clear();
+  result->not_separated = 0;
   if (any_died) {
     // (alive feature, dead neighbour) of the pairs that die, for their bridges.
     std::vector<std::pair<int, int>> lost;
@@ -378,7 +385,10 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
       polyline_.size() >= 2) {
     for (const bool front : {false, true}) {
       CutPoint point;
-      if (!ProbeGrowth(front, result, &point)) continue;
+      const bool found = options_.decision == CutDecision::kRules
+                             ? ProbeGrowth(front, result, &point)
+                             : TipGrowth(front, result, &point);
+      if (!found) continue;
       const Placement placement = front ? Placement::kFront : Placement::kBack;
       if (!SegmentAccepted(point, placement)) {
         ++result->refused_segments;
@@ -396,6 +406,7 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
 }
 
 void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
+  const bool rules = options_.decision == CutDecision::kRules;
   for (int inserted = 0; inserted < options_.max_cut_points_per_frame; ++inserted) {
     // Select a cluster and its point; clusters rejected as one feature's star, as one-sided or
     // as no growth of the polyline leave the candidates and the next one is tried.
@@ -405,7 +416,7 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
       if (OutlierCount(candidates_, *result) < options_.min_outliers) break;
       if (options_.cluster_outliers) {
         SelectCluster(*result);
-        while (options_.reject_lone_features &&
+        while (rules && options_.reject_lone_features &&
                OutlierCount(cluster_, *result) >= options_.min_outliers &&
                RemoveLoneFeature(*result)) {
           ++result->lone_features;
@@ -456,20 +467,30 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
           continue;
         }
       }
-      if (options_.confirm_starts_with_model_measure &&
-          options_.measure == CutMeasure::kImageOnly && !grows &&
-          !ConfirmedByModelMeasure(point.position_mm, *result)) {
+      if (!rules) {
+        // One decision for starts and growth: does the misfit around the point jump across a
+        // line? (The rules below are not asked.)
+        const SeparationTestResult test =
+            SeparationAt(point.initial_position_mm, std::nullopt, result);
+        if (!test.separated) {
+          ++result->not_separated;
+          DropClusterFromCandidates();
+          continue;
+        }
+      } else if (options_.confirm_starts_with_model_measure &&
+                 options_.measure == CutMeasure::kImageOnly && !grows &&
+                 !ConfirmedByModelMeasure(point.position_mm, *result)) {
         ++result->unconfirmed_starts;
         DropClusterFromCandidates();
         continue;
       }
-      if (options_.closing_window_frames > 0 && !grows &&
+      if (rules && options_.closing_window_frames > 0 && !grows &&
           ClusterDistanceChange(*result) < -options_.max_closing_fraction) {
         ++result->closing_starts;
         DropClusterFromCandidates();
         continue;
       }
-      if (options_.cluster_outliers && options_.min_opening_balance > 0.0 && !grows &&
+      if (rules && options_.cluster_outliers && options_.min_opening_balance > 0.0 && !grows &&
           OpeningBalance(*result) < MinOpeningBalance(*result)) {
         ++result->one_sided_clusters;
         DropClusterFromCandidates();
@@ -478,14 +499,14 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
       // A lone point's growth (nothing is cut yet) must not close one lip (on the whole, one
       // side's targets inward of their model points): that is a strain concentration, and the
       // lone point beside it is taken as its work and dropped.
-      if (options_.cluster_outliers && grows && polyline_.size() == 1 &&
+      if (rules && options_.cluster_outliers && grows && polyline_.size() == 1 &&
           OpeningBalance(*result) <= options_.min_lone_growth_balance) {
         ++result->one_sided_clusters;
         DropClusterFromCandidates();
         polyline_.clear();
         continue;
       }
-      if (options_.cluster_outliers && options_.reject_star_starts && !grows &&
+      if (rules && options_.cluster_outliers && options_.reject_star_starts && !grows &&
           StarHub(static_cast<int>(cluster_.size()),
                   [&](int i) -> const FeaturePair& { return result->pairs[cluster_[i]]; }) >= 0) {
         ++result->star_starts;
@@ -1092,6 +1113,78 @@ std::vector<Eigen::Vector3d> CutDetector::ExtendedPolyline(bool initial_frame) c
   for (size_t i = 0; i < count; ++i) out.push_back(pos(i));
   if (auto e = extension(count - 1, count - 2, back_at_border_)) out.push_back(*e);
   return out;
+}
+
+SeparationTestResult CutDetector::SeparationAt(const Eigen::Vector3d& initial_mm,
+                                               const std::optional<Eigen::Vector3d>& along,
+                                               DetectionResult* result) const {
+  const double radius = options_.separation_radius_factor * options_.neighbour_radius_mm;
+  std::vector<int> near;
+  for (int f = 0; f < num_features(); ++f)
+    if (alive_[f] && (initial_mm_.row(f).transpose() - initial_mm).squaredNorm() < radius * radius)
+      near.push_back(f);
+  const int n = static_cast<int>(near.size());
+  RowMatX3d rest(n, 3), current(n, 3), misfit(n, 3);
+  for (int k = 0; k < n; ++k) {
+    rest.row(k) = initial_mm_.row(near[k]);
+    current.row(k) = model_mm_.row(near[k]);
+    misfit.row(k) = target_mm_.row(near[k]) - model_mm_.row(near[k]);
+  }
+  SeparationTestResult test = TestSeparation(rest, current, misfit, initial_mm, options_.separation,
+                                             along, options_.growth_cone_deg);
+  result->separation_tests.emplace_back(initial_mm, test);
+  return test;
+}
+
+Eigen::Vector3d CutDetector::CurrentPosition(const Eigen::Vector3d& initial_mm) const {
+  const double r2 = options_.neighbour_radius_mm * options_.neighbour_radius_mm;
+  std::vector<int> near;
+  for (int f = 0; f < num_features(); ++f)
+    if (alive_[f] && (initial_mm_.row(f).transpose() - initial_mm).squaredNorm() < r2)
+      near.push_back(f);
+  const int n = static_cast<int>(near.size());
+  if (n == 0) return initial_mm;
+  Eigen::MatrixXd design(n, 4), current(n, 3);
+  for (int k = 0; k < n; ++k) {
+    design.row(k) << 1.0, (initial_mm_.row(near[k]).transpose() - initial_mm).transpose();
+    current.row(k) = model_mm_.row(near[k]);
+  }
+  if (n < 4)
+    return current.colwise().mean().transpose() -
+           (design.rightCols(3).colwise().mean()).transpose();
+  // The map's value at the point itself is its constant term.
+  const Eigen::MatrixXd coefficients = design.colPivHouseholderQr().solve(current);
+  return coefficients.row(0).transpose();
+}
+
+bool CutDetector::TipGrowth(bool front, DetectionResult* result, CutPoint* point) {
+  const size_t last = polyline_.size() - 1;
+  const CutPoint& end = polyline_[front ? 0 : last];
+  Eigen::Vector3d dir =
+      end.initial_position_mm - polyline_[front ? 1 : last - 1].initial_position_mm;
+  if (dir.norm() == 0.0) return false;
+  dir.normalize();
+  // From the end of the extension (ExtendedPolyline): S reaches that far already.
+  double extension = options_.look_ahead ? options_.cut_point_radius_mm : 0.0;
+  if (options_.extend_to_boundary && (front ? front_at_border_ : back_at_border_))
+    extension = std::max(extension, options_.boundary_extension_mm);
+  // Tested over the part ahead of the cut's reach; the new point lies r_pc into it, on the line
+  // the test found.
+  const Eigen::Vector3d reach = end.initial_position_mm + extension * dir;
+  const SeparationTestResult test = SeparationAt(reach, dir, result);
+  if (!test.separated) {
+    if (test.tested) ++result->not_separated;
+    return false;
+  }
+  const Eigen::Vector3d ahead =
+      test.direction.dot(dir) < 0.0 ? Eigen::Vector3d(-test.direction) : test.direction;
+  point->initial_position_mm =
+      reach + test.offset_mm * test.normal + options_.cut_point_radius_mm * ahead;
+  point->position_mm = CurrentPosition(point->initial_position_mm);
+  point->frame = frame_;
+  point->num_outliers = test.features_side[0] + test.features_side[1];
+  point->probe = true;
+  return true;
 }
 
 }  // namespace arreg::cutting

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/mesh.h"
+#include "cutting/separation_test.h"
 
 namespace arreg::cutting {
 
@@ -22,6 +23,22 @@ enum class CutMeasure {
   kModelRegularised,
   // mu2 = delta^1 / delta^0: image targets only; independent of the model ([82]).
   kImageOnly,
+};
+
+// What decides that a cluster of outliers (or a growing cut's tip) is a separation.
+enum class CutDecision {
+  // The separation test (separation_test.h): the misfit around the point is tested for a jump
+  // across a line against one continuous deformation, at the false-alarm probability
+  // `separation.false_alarm_probability` (scene key cutting.false_alarm_probability). Used for
+  // every cut point, starts and growth alike; the
+  // growth probe tests the tip's continuation the same way (probe_length_factor 0 turns both
+  // probes off). The rules listed under kRules are not asked.
+  kSeparationTest,
+  // The thesis measure's clusters with the rule set documented on each option below
+  // (reject_lone_features, min_opening_balance, min_opening_balance_bridges,
+  // min_lone_growth_balance, reject_star_starts, confirm_starts_with_model_measure,
+  // closing_window_frames, and the probe's pair outliers).
+  kRules,
 };
 
 // Thesis defaults are those of the kidney 1 experiment (thesis 7.7 / DESIGN.md section 4), with
@@ -264,6 +281,19 @@ struct CutDetectorOptions {
   // follow, not its continuation (band-cut-v seed 4: the band/stem junction, 28-50 mm ahead;
   // docs/detection.md, "A tear grows from its tip"). Default 1.
   double probe_max_lead_factor = 1.0;
+  // The decision (see CutDecision). Default kRules: on the synthetic development scenes the
+  // separation test matches the rules on precuts, S-cuts and the kidney and makes no cut on
+  // stretched bands, but follows a V-tear whose lips the tracker loses less far
+  // (docs/detection.md, "Measured").
+  CutDecision decision = CutDecision::kRules;
+  // The separation test's options (kSeparationTest).
+  SeparationTestOptions separation;
+  // [-] Radius of the neighbourhood whose alive features the separation test uses, around the
+  // tested point (frame 0), as a factor on r_F. Default 2.
+  double separation_radius_factor = 2.0;
+  // [deg] A growing cut's continuation is tested for lines within this angle of its last
+  // segment's direction. Default 30.
+  double growth_cone_deg = 30.0;
 
   // Throws arreg::Error naming the offending field.
   void Check() const;
@@ -320,7 +350,10 @@ struct DetectionResult {
   int pairs_bridged = 0;   // pairs added this frame in place of dead ones (bridge_radius_factor)
   int probe_pairs = 0;     // alive probe pairs evaluated this frame (probe_length_factor)
   int probe_outliers = 0;  // of which outliers (after dropping a feature's star)
-  bool segment_added = false;                // the polyline has >= 2 points and grew this frame
+  // Separation tests of this frame (kSeparationTest): the tested point (frame 0) and the result.
+  std::vector<std::pair<Eigen::Vector3d, SeparationTestResult>> separation_tests;
+  int not_separated = 0;       // clusters and probes the separation test rejected this frame
+  bool segment_added = false;  // the polyline has >= 2 points and grew this frame
   std::vector<Eigen::Vector3d> polyline_mm;  // cut points in order (p^t at insertion)
   std::optional<Eigen::Vector3d>
       look_ahead_mm;  // r_pc beyond the extremity grown this frame (if look_ahead)
@@ -443,6 +476,19 @@ class CutDetector {
   // The growth probe of an extremity (see CutDetectorOptions::probe_length_factor): evaluates
   // its pairs and fills *point when their count reaches n.
   bool ProbeGrowth(bool front, DetectionResult* result, CutPoint* point);
+  // The separation test at a frame-0 point over the alive features within
+  // separation_radius_factor * r_F of it; `along` restricts the line's direction. Recorded in
+  // result->separation_tests.
+  SeparationTestResult SeparationAt(const Eigen::Vector3d& initial_mm,
+                                    const std::optional<Eigen::Vector3d>& along,
+                                    DetectionResult* result) const;
+  // The growth test of an extremity (kSeparationTest): the separation test over the part ahead
+  // of the end of its extension, within growth_cone_deg of its last segment's direction; fills
+  // *point (r_pc into that part, on the line found) when it separates.
+  bool TipGrowth(bool front, DetectionResult* result, CutPoint* point);
+  // This frame's model position of a frame-0 point: the least-squares affine map from p^0 to p^t
+  // of the alive features within r_F of it (their mean translation when fewer than 4).
+  Eigen::Vector3d CurrentPosition(const Eigen::Vector3d& initial_mm) const;
   // Builds the probe's pairs, when its extremity has changed since the last build.
   void BuildProbe(bool front);
   // Fills cluster_ from candidates_ (see CutDetectorOptions::cluster_outliers).

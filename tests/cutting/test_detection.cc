@@ -534,6 +534,66 @@ TEST(CutDetector, SeamPulledApartGivesCutPointsAlongTheSeam) {
     }
 }
 
+// The separation test decides (CutDecision::kSeparationTest): the seam's cut points lie on the
+// seam and grow with the cut, on every seed.
+TEST(CutDetector, SeparationTestFollowsTheSeam) {
+  const FeatureGrid g = MakeGrid();
+  CutDetectorOptions given;
+  given.decision = CutDecision::kSeparationTest;
+  for (unsigned seed : {1u, 2u, 3u, 4u, 5u}) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    SeamScenario scenario;
+    scenario.seed = seed;
+    const SeamRun run = RunSeam(g, scenario, given);
+    const CutDetectorOptions& options = run.resolved;
+    ASSERT_GE(run.points.size(), 4u) << "the 125 mm cut should give a polyline";
+    for (size_t i = 0; i < run.points.size(); ++i) {
+      const Eigen::Vector2d c = scenario.Coordinates(run.points[i].initial_position_mm);
+      EXPECT_LT(std::abs(c.y()), options.cut_point_radius_mm) << "cut point " << i;
+      EXPECT_LT(c.x(), run.tip_at_point[i] + options.cut_point_radius_mm) << "cut point " << i;
+    }
+    // The extended polyline reaches within 3 r_pc of the cut's final tip.
+    double reach = -std::numeric_limits<double>::infinity();
+    for (const Eigen::Vector3d& p : run.extended_initial)
+      reach = std::max(reach, scenario.Coordinates(p).x());
+    EXPECT_GT(reach, scenario.tip_end_mm - 3 * options.cut_point_radius_mm);
+  }
+}
+
+// A stretch to 186 % that the model follows one frame late (the misfit is a smooth field) is no
+// separation for the test: no cut point, uniaxial or biaxial, on noisy targets.
+TEST(CutDetector, SeparationTestMakesNoCutOfAStretch) {
+  const FeatureGrid g = MakeGrid();
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, 0.25);
+  for (bool biaxial : {false, true}) {
+    CutDetectorOptions o;
+    o.decision = CutDecision::kSeparationTest;
+    CutDetector detector(o);
+    detector.Initialize(g.p0, g.ids);
+    DetectionResult r;
+    int cut_points = 0, tests = 0;
+    const Eigen::RowVector3d centre(87.5, 0.0, 0.0);
+    for (int k = 1; k <= 40; ++k) {
+      const double stretch = 1.0 + 0.86 * k / 40.0, lagged = 1.0 + 0.86 * (k - 1) / 40.0;
+      RowMatX3d target = g.p0, model = g.p0;
+      for (int i = 0; i < g.p0.rows(); ++i) {
+        const Eigen::RowVector3d rel = g.p0.row(i) - centre;
+        target(i, 0) = centre(0) + stretch * rel(0) + noise(rng);
+        model(i, 0) = centre(0) + lagged * rel(0);
+        if (biaxial) {
+          target(i, 1) = centre(1) + stretch * rel(1) + noise(rng);
+          model(i, 1) = centre(1) + lagged * rel(1);
+        }
+      }
+      detector.Update(MakeFrame(g, target, model), &r);
+      cut_points += static_cast<int>(r.new_cut_points.size());
+      tests += static_cast<int>(r.separation_tests.size());
+    }
+    EXPECT_EQ(cut_points, 0) << "biaxial " << biaxial << ", " << tests << " tests";
+  }
+}
+
 // The seam cut with a caller that cannot cut beyond 50 mm along it (in the pipeline: the cut
 // surface of a segment there would split the model at every depth, cutting.keep_connected).
 // The segment check sees each segment's polyline before it is added, with its extensions, at

@@ -46,6 +46,8 @@ void CuttingStageOptions::Check() const {
                     "cutting.on_surface_tolerance", "must be >= 0, got ", on_surface_tolerance);
   ARREG_CHECK_INPUT(std::isfinite(foresight_mm) && foresight_mm >= 0, "", "cutting.foresight_mm",
                     "must be >= 0, got ", foresight_mm);
+  ARREG_CHECK_INPUT(std::isfinite(tracking_noise_px) && tracking_noise_px > 0, "",
+                    "cutting.tracking_noise_px", "must be > 0, got ", tracking_noise_px);
   ARREG_CHECK_INPUT(std::isfinite(min_outlier_measure_px) && min_outlier_measure_px >= 0, "",
                     "cutting.min_outlier_measure_px", "must be >= 0, got ", min_outlier_measure_px);
   ARREG_CHECK_INPUT(method == "flips" || method == "bielser", "", "cutting.method",
@@ -221,6 +223,18 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("probe_pair_length_factor", &o->detector.probe_pair_length_factor);
   r.Optional("probe_outlier_factor", &o->detector.probe_outlier_factor);
   r.Optional("probe_max_lead_factor", &o->detector.probe_max_lead_factor);
+  std::string decision =
+      o->detector.decision == cutting::CutDecision::kRules ? "rules" : "separation-test";
+  r.OptionalChoice("decision", {"separation-test", "rules"}, &decision);
+  o->detector.decision =
+      decision == "rules" ? cutting::CutDecision::kRules : cutting::CutDecision::kSeparationTest;
+  r.Optional("false_alarm_probability", &o->detector.separation.false_alarm_probability);
+  r.Optional("min_features_per_side", &o->detector.separation.min_features_per_side);
+  r.Optional("separation_directions", &o->detector.separation.directions);
+  r.Optional("strip_half_width", &o->detector.separation.strip_half_width);
+  r.Optional("separation_radius_factor", &o->detector.separation_radius_factor);
+  r.Optional("growth_cone_deg", &o->detector.growth_cone_deg);
+  r.Optional("tracking_noise_px", &o->tracking_noise_px);
   r.Optional("spring_margin_mm", &o->spring_margin_mm);
   r.Optional("extrusion_margin_mm", &o->extrusion_margin_mm);
   r.OptionalChoice("method", {"flips", "bielser"}, &o->method);
@@ -358,6 +372,15 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"probe_pair_length_factor", o.cutting.detector.probe_pair_length_factor},
       {"probe_outlier_factor", o.cutting.detector.probe_outlier_factor},
       {"probe_max_lead_factor", o.cutting.detector.probe_max_lead_factor},
+      {"decision",
+       o.cutting.detector.decision == cutting::CutDecision::kRules ? "rules" : "separation-test"},
+      {"false_alarm_probability", o.cutting.detector.separation.false_alarm_probability},
+      {"min_features_per_side", o.cutting.detector.separation.min_features_per_side},
+      {"separation_directions", o.cutting.detector.separation.directions},
+      {"strip_half_width", o.cutting.detector.separation.strip_half_width},
+      {"separation_radius_factor", o.cutting.detector.separation_radius_factor},
+      {"growth_cone_deg", o.cutting.detector.growth_cone_deg},
+      {"tracking_noise_px", o.cutting.tracking_noise_px},
       {"spring_margin_mm", o.cutting.spring_margin_mm},
       {"extrusion_margin_mm", o.cutting.extrusion_margin_mm},
       {"method", o.cutting.method},

@@ -117,6 +117,11 @@ struct CuttingStageOptions {
   // (0.1 mm is a third of a pixel on the synthetic kidney, a quarter on the bands). 0 leaves
   // the millimetre floor alone. Default 1 (docs/detection.md, "A floor in pixels").
   double min_outlier_measure_px = 1.0;
+  // [px] standard deviation of the tracked positions per image axis: the separation test's noise
+  // floor (cutting::SeparationTestOptions::noise_floor_mm), converted to millimetres at the
+  // attached features' median frame-0 depth. The drift-corrected tracker keeps synthetic
+  // features 0.26-0.40 px (median) from their true positions (docs/tracking.md). Default 0.5.
+  double tracking_noise_px = 0.5;
   // With keep_connected, the detector is given the cut handler's verdict before it adds a
   // segment (cutting::CutDetector::SetSegmentCheck): a point whose segment would make an event
   // that keep_connected rejects at every depth is refused, as a point that is no growth of the

@@ -106,21 +106,24 @@ mechanics::Material ToMechanicsMaterial(const Material& m) {
   return out;
 }
 
-// The detector's options with the outlier floor of CuttingStageOptions::min_outlier_measure_px:
-// that many pixels at the median camera depth of the features' frame-0 points `p0_mm`.
+// The detector's options with the outlier floor of CuttingStageOptions::min_outlier_measure_px
+// and the separation test's noise floor of tracking_noise_px: that many pixels at the median
+// camera depth of the features' frame-0 points `p0_mm`.
 cutting::CutDetectorOptions WithPixelFloor(const CuttingStageOptions& o,
                                            const PinholeCamera& camera, const RowMatX3d& p0_mm) {
   cutting::CutDetectorOptions d = o.detector;
-  if (o.min_outlier_measure_px <= 0 || p0_mm.rows() == 0) return d;
+  if (p0_mm.rows() == 0) return d;
   std::vector<double> depth(p0_mm.rows());
   for (Eigen::Index i = 0; i < p0_mm.rows(); ++i)
     depth[i] = (camera.camera_from_world * p0_mm.row(i).transpose()).z();
   const auto mid = depth.begin() + depth.size() / 2;
   std::nth_element(depth.begin(), mid, depth.end());
   const double mm_per_px = *mid / (0.5 * (camera.fx + camera.fy));
-  if (std::isfinite(mm_per_px) && mm_per_px > 0)
+  if (std::isfinite(mm_per_px) && mm_per_px > 0) {
     d.min_outlier_measure_mm =
         std::max(d.min_outlier_measure_mm, o.min_outlier_measure_px * mm_per_px);
+    d.separation.noise_floor_mm = o.tracking_noise_px * mm_per_px;
+  }
   return d;
 }
 
