@@ -239,6 +239,17 @@ nlohmann::json MakeFrameRecord(const pipeline::FrameState& frame, const PinholeC
                             {"initial_mm", Point3(c.initial_position_mm)},
                             {"num_outliers", c.num_outliers},
                             {"probe", c.probe}});
+    nlohmann::json separation = nlohmann::json::array();
+    for (const auto& [initial_mm, t] : d.separation_tests)
+      separation.push_back({{"initial_mm", Point3(initial_mm)},
+                            {"tested", t.tested},
+                            {"separated", t.separated},
+                            {"statistic", Round(t.statistic, 1e4)},
+                            {"robust_statistic", Round(t.robust_statistic, 1e4)},
+                            {"threshold", Round(t.threshold, 1e4)},
+                            {"features_side", {t.features_side[0], t.features_side[1]}},
+                            {"opening_mm", Round(t.opening_mm, 1e4)},
+                            {"jump_mm", Point3(t.jump_mm)}});
     nlohmann::json polyline_px, extended_px;
     nlohmann::json polyline_mm = Polyline(camera, d.polyline_mm, scale, &polyline_px);
     nlohmann::json extended_mm = Polyline(camera, d.extended_polyline_mm, scale, &extended_px);
@@ -260,6 +271,8 @@ nlohmann::json MakeFrameRecord(const pipeline::FrameState& frame, const PinholeC
                  {"closing_starts", d.closing_starts},
                  {"refused_points", d.refused_points},
                  {"refused_segments", d.refused_segments},
+                 {"not_separated", d.not_separated},
+                 {"separation_tests", std::move(separation)},
                  {"new_cut_points", std::move(new_points)},
                  {"segment_added", d.segment_added},
                  {"polyline_mm", std::move(polyline_mm)},

@@ -309,6 +309,12 @@ const char kViewerJs[] = R"JS('use strict';
         ['clusters rejected: sliding star / one-sided / star start / unconfirmed start / closing start / no growth / splitting',
           [det.lone_features, det.one_sided_clusters, det.star_starts, det.unconfirmed_starts,
             det.closing_starts, det.refused_points, det.refused_segments].map((v) => (v === undefined ? '-' : v)).join(' / ')]);
+      (det.separation_tests || []).forEach((t) => rows.push(['separation test at ' +
+        t.initial_mm.map((v) => v.toFixed(1)).join(', ') + ' mm',
+        (t.tested ? 'F ' + t.statistic.toFixed(1) + ' / ' + t.threshold.toFixed(1) +
+          ' (one left out ' + t.robust_statistic.toFixed(1) + '), opening ' + t.opening_mm.toFixed(2) +
+          ' mm, sides ' + t.features_side.join('/') : 'too few features') +
+        (t.separated ? ': separated' : '')]));
     } else {
       rows.push(['cut detection', 'off']);
     }
