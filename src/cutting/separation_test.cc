@@ -109,8 +109,8 @@ struct LineFit {
   int side_count[2] = {0, 0};
 };
 
-// The F(6, dof) quantile at 1 - alpha / tests per degree of freedom of the variance estimate, computed
-// once each (index 0: the floor's infinite degrees of freedom).
+// The F(6, dof) quantile at 1 - alpha / tests per degree of freedom of the variance estimate,
+// computed once each (index 0: the floor's infinite degrees of freedom).
 class Thresholds {
  public:
   Thresholds(double alpha, double tests) : p_(1.0 - alpha / tests) {}
@@ -158,8 +158,8 @@ LineFit FitLine(const Eigen::MatrixXd& ts, const Eigen::MatrixXd& misfit,
   const Projector h0(design);
   const int dof = 3 * (n - h0.rank - 2);
   if (dof <= 0) return fit;
-  const Eigen::MatrixXd r = h0.Residual(misfit);         // (#n x 3)
-  const Eigen::MatrixXd h = h0.Residual(jump_design);    // (#n x 2)
+  const Eigen::MatrixXd r = h0.Residual(misfit);       // (#n x 3)
+  const Eigen::MatrixXd h = h0.Residual(jump_design);  // (#n x 2)
   const Eigen::Matrix2d gram = h.transpose() * h;
   if (gram.determinant() <= 1e-12 * n * n) return fit;
   const Eigen::Matrix<double, 2, 3> coefficients = gram.ldlt().solve(h.transpose() * r);
@@ -210,8 +210,8 @@ void SeparationTestOptions::Check() const {
 double RegularizedIncompleteBeta(double a, double b, double x) {
   if (x <= 0.0) return 0.0;
   if (x >= 1.0) return 1.0;
-  const double log_front = std::lgamma(a + b) - std::lgamma(a) - std::lgamma(b) +
-                           a * std::log(x) + b * std::log1p(-x);
+  const double log_front =
+      std::lgamma(a + b) - std::lgamma(a) - std::lgamma(b) + a * std::log(x) + b * std::log1p(-x);
   const double front = std::exp(log_front);
   if (x < (a + 1.0) / (a + b + 2.0)) return front * BetaContinuedFraction(a, b, x) / a;
   return 1.0 - front * BetaContinuedFraction(b, a, 1.0 - x) / b;
@@ -232,8 +232,7 @@ double FisherQuantile(double p, double d1, double d2) {
 SeparationTestResult TestSeparation(const RowMatX3d& rest_mm, const RowMatX3d& current_mm,
                                     const RowMatX3d& misfit_mm, const Eigen::Vector3d& centre_mm,
                                     const SeparationTestOptions& options,
-                                    const std::optional<Eigen::Vector3d>& along,
-                                    double cone_deg) {
+                                    const std::optional<Eigen::Vector3d>& along, double cone_deg) {
   options.Check();
   const int n = static_cast<int>(rest_mm.rows());
   ARREG_ASSERT(current_mm.rows() == n && misfit_mm.rows() == n, "TestSeparation: row counts");
@@ -365,8 +364,9 @@ SeparationTestResult TestSeparation(const RowMatX3d& rest_mm, const RowMatX3d& c
   double robust = std::numeric_limits<double>::infinity();
   bool holds = true;
   for (int skip = 0; skip < m && holds; ++skip) {
-    const LineFit fit = FitLine(WithoutRow(best_strip.ts, skip), WithoutRow(best_strip.misfit, skip),
-                                WithoutRow(best_strip.current, skip), reduced, &thresholds);
+    const LineFit fit =
+        FitLine(WithoutRow(best_strip.ts, skip), WithoutRow(best_strip.misfit, skip),
+                WithoutRow(best_strip.current, skip), reduced, &thresholds);
     holds = fit.valid && fit.significant && fit.opening > 0.0;
     robust = std::min(robust, fit.valid ? fit.f : 0.0);
   }

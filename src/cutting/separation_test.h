@@ -11,8 +11,8 @@ namespace arreg::cutting {
 
 // The model. Around a candidate point c, the features' misfit r_l = p^1_l - p^t_l (target minus
 // model) is a function of their rest position p^0_l. Along a candidate line through c (in-plane
-// normal m, direction t, signed distance s = m . (p^0 - c), arc t . (p^0 - c)), only the features of
-// a strip beside the line are used, strip_half_width spacings wide on each side, so that any
+// normal m, direction t, signed distance s = m . (p^0 - c), arc t . (p^0 - c)), only the features
+// of a strip beside the line are used, strip_half_width spacings wide on each side, so that any
 // deformation that is smooth at the scale the features resolve is, in the strip, close to its
 // first-order expansion on each side. Under H0 (one continuous deformation) the misfit is, per
 // component, continuous across the line with a slope that may change there (a strain the model
@@ -54,16 +54,16 @@ struct SeparationTestOptions {
 };
 
 struct SeparationTestResult {
-  bool tested = false;     // enough features on both sides for some direction
-  bool separated = false;  // H1 accepted: significant, opening, and robust to one feature
-  double statistic = 0.0;  // F of the best line (with every feature)
+  bool tested = false;            // enough features on both sides for some direction
+  bool separated = false;         // H1 accepted: significant, opening, and robust to one feature
+  double statistic = 0.0;         // F of the best line (with every feature)
   double robust_statistic = 0.0;  // the smallest F with one feature left out
   double threshold = 0.0;         // the F quantile it is compared with
-  int num_features = 0;            // features given
-  int features_side[2] = {0, 0};   // strip features with s <= 0 and s > 0 (best line)
-  double spacing_mm = 0.0;         // median nearest-neighbour distance of the features (rest)
-  double offset_mm = 0.0;          // the best line's offset from c along m
-  Eigen::Vector3d normal = Eigen::Vector3d::Zero();  // m: unit, rest coordinates, in-plane
+  int num_features = 0;           // features given
+  int features_side[2] = {0, 0};  // strip features with s <= 0 and s > 0 (best line)
+  double spacing_mm = 0.0;        // median nearest-neighbour distance of the features (rest)
+  double offset_mm = 0.0;         // the best line's offset from c along m
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();     // m: unit, rest coordinates, in-plane
   Eigen::Vector3d direction = Eigen::Vector3d::Zero();  // the line's direction (normal x m)
   // g, misfit of side 1 minus side 0, at the strip's mean position along the line
   Eigen::Vector3d jump_mm = Eigen::Vector3d::Zero();

@@ -49,7 +49,8 @@ void AddSmoothFieldAndNoise(Patch* patch, double noise_mm, std::mt19937* rng) {
   std::normal_distribution<double> gauss(0.0, noise_mm);
   for (int i = 0; i < patch->rest.rows(); ++i) {
     const double x = patch->rest(i, 0) / 22.0, y = patch->rest(i, 1) / 22.0;
-    patch->misfit.row(i) += Eigen::RowVector3d(0.8 * x + 0.6 * x * y, 1.2 * y * y - 0.4 * x, 0.3 * x * x);
+    patch->misfit.row(i) +=
+        Eigen::RowVector3d(0.8 * x + 0.6 * x * y, 1.2 * y * y - 0.4 * x, 0.3 * x * x);
     for (int c = 0; c < 3; ++c) patch->misfit(i, c) += gauss(*rng);
   }
 }
@@ -166,7 +167,8 @@ TEST(SeparationTest, AGrowingCutIsTestedWithinTheConeOfItsDirection) {
   Patch patch = MakePatch(&rng);
   AddSmoothFieldAndNoise(&patch, 0.1, &rng);
   AddJump(&patch, Eigen::RowVector3d(1.5, 0.0, 0.0));
-  // The line x = 0 runs along y (only the half y > 0 ahead of c is tested): found when the cone admits it, not when it is 90 degrees off.
+  // The line x = 0 runs along y (only the half y > 0 ahead of c is tested): found when the cone
+  // admits it, not when it is 90 degrees off.
   const SeparationTestOptions o = Options(1e-6);
   EXPECT_TRUE(TestSeparation(patch.rest, patch.current, patch.misfit, Eigen::Vector3d::Zero(), o,
                              Eigen::Vector3d(0, 1, 0), 30.0)
@@ -180,8 +182,8 @@ TEST(SeparationTest, TooFewFeaturesOnASideAreNotTested) {
   std::mt19937 rng(29);
   Patch patch = MakePatch(&rng);
   const RowMatX3d few = patch.rest.topRows(5);
-  const SeparationTestResult r = TestSeparation(few, few, RowMatX3d::Zero(5, 3),
-                                                Eigen::Vector3d::Zero(), Options(1e-6));
+  const SeparationTestResult r =
+      TestSeparation(few, few, RowMatX3d::Zero(5, 3), Eigen::Vector3d::Zero(), Options(1e-6));
   EXPECT_FALSE(r.tested);
   EXPECT_FALSE(r.separated);
   SeparationTestOptions bad;
