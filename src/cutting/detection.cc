@@ -1124,14 +1124,14 @@ SeparationTestResult CutDetector::SeparationAt(const Eigen::Vector3d& initial_mm
     if (alive_[f] && (initial_mm_.row(f).transpose() - initial_mm).squaredNorm() < radius * radius)
       near.push_back(f);
   const int n = static_cast<int>(near.size());
-  RowMatX3d rest(n, 3), current(n, 3), misfit(n, 3);
+  RowMatX3d rest(n, 3), current(n, 3), displacement(n, 3);
   for (int k = 0; k < n; ++k) {
     rest.row(k) = initial_mm_.row(near[k]);
     current.row(k) = model_mm_.row(near[k]);
-    misfit.row(k) = target_mm_.row(near[k]) - model_mm_.row(near[k]);
+    displacement.row(k) = target_mm_.row(near[k]) - initial_mm_.row(near[k]);
   }
-  SeparationTestResult test = TestSeparation(rest, current, misfit, initial_mm, options_.separation,
-                                             along, options_.growth_cone_deg);
+  SeparationTestResult test = TestSeparation(rest, current, displacement, initial_mm,
+                                             options_.separation, along, options_.growth_cone_deg);
   result->separation_tests.emplace_back(initial_mm, test);
   return test;
 }

@@ -27,10 +27,10 @@ enum class CutMeasure {
 
 // What decides that a cluster of outliers (or a growing cut's tip) is a separation.
 enum class CutDecision {
-  // The separation test (separation_test.h): the misfit around the point is tested for a jump
-  // across a line against one continuous deformation, at the false-alarm probability
-  // `separation.false_alarm_probability` (scene key cutting.false_alarm_probability). Used for
-  // every cut point, starts and growth alike; the
+  // The separation test (separation_test.h): the features' displacement p^1 - p^0 around the
+  // point is tested for a jump across a line against one continuous deformation, at the
+  // false-alarm probability `separation.false_alarm_probability` (scene key
+  // cutting.false_alarm_probability). Used for every cut point, starts and growth alike; the
   // growth probe tests the tip's continuation the same way (probe_length_factor 0 turns both
   // probes off). The rules listed under kRules are not asked.
   kSeparationTest,
@@ -282,9 +282,9 @@ struct CutDetectorOptions {
   // docs/detection.md, "A tear grows from its tip"). Default 1.
   double probe_max_lead_factor = 1.0;
   // The decision (see CutDecision). Default kRules: on the synthetic development scenes the
-  // separation test matches the rules on precuts, S-cuts and the kidney and makes no cut on
-  // stretched bands, but follows a V-tear whose lips the tracker loses less far
-  // (docs/detection.md, "Measured").
+  // separation test matches the rules on the side precut, the S-cut and the kidney and makes no
+  // cut on stretched bands, but follows a V-tear whose lips the tracker loses less far and
+  // misses a middle precut (docs/detection.md, "Measured").
   CutDecision decision = CutDecision::kRules;
   // The separation test's options (kSeparationTest).
   SeparationTestOptions separation;
@@ -476,9 +476,9 @@ class CutDetector {
   // The growth probe of an extremity (see CutDetectorOptions::probe_length_factor): evaluates
   // its pairs and fills *point when their count reaches n.
   bool ProbeGrowth(bool front, DetectionResult* result, CutPoint* point);
-  // The separation test at a frame-0 point over the alive features within
-  // separation_radius_factor * r_F of it; `along` restricts the line's direction. Recorded in
-  // result->separation_tests.
+  // The separation test at a frame-0 point over the displacements p^1 - p^0 of the alive
+  // features within separation_radius_factor * r_F of it; `along` restricts the line's direction.
+  // Recorded in result->separation_tests.
   SeparationTestResult SeparationAt(const Eigen::Vector3d& initial_mm,
                                     const std::optional<Eigen::Vector3d>& along,
                                     DetectionResult* result) const;

@@ -230,12 +230,13 @@ double FisherQuantile(double p, double d1, double d2) {
 }
 
 SeparationTestResult TestSeparation(const RowMatX3d& rest_mm, const RowMatX3d& current_mm,
-                                    const RowMatX3d& misfit_mm, const Eigen::Vector3d& centre_mm,
+                                    const RowMatX3d& displacement_mm,
+                                    const Eigen::Vector3d& centre_mm,
                                     const SeparationTestOptions& options,
                                     const std::optional<Eigen::Vector3d>& along, double cone_deg) {
   options.Check();
   const int n = static_cast<int>(rest_mm.rows());
-  ARREG_ASSERT(current_mm.rows() == n && misfit_mm.rows() == n, "TestSeparation: row counts");
+  ARREG_ASSERT(current_mm.rows() == n && displacement_mm.rows() == n, "TestSeparation: row counts");
   SeparationTestResult result;
   result.num_features = n;
   if (n < 2 * options.min_features_per_side) return result;
@@ -322,7 +323,7 @@ SeparationTestResult TestSeparation(const RowMatX3d& rest_mm, const RowMatX3d& c
       const int i = rows[k];
       strip.ts(k, 0) = -s * local(i, 0) + c * local(i, 1);
       strip.ts(k, 1) = c * local(i, 0) + s * local(i, 1) - offset;
-      strip.misfit.row(k) = misfit_mm.row(i);
+      strip.misfit.row(k) = displacement_mm.row(i);
       strip.current.row(k) = current_mm.row(i);
     }
     return strip;

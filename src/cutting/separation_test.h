@@ -1,5 +1,5 @@
-// The detector's decision: does the registration misfit around a point show two pieces separating
-// along a line, or one continuous deformation that the model follows imperfectly?
+// The detector's decision: does the tissue's motion around a point show two pieces separating
+// along a line, or one continuous deformation?
 #pragma once
 
 #include <Eigen/Core>
@@ -9,14 +9,15 @@
 
 namespace arreg::cutting {
 
-// The model. Around a candidate point c, the features' misfit r_l = p^1_l - p^t_l (target minus
-// model) is a function of their rest position p^0_l. Along a candidate line through c (in-plane
+// The model. Around a candidate point c, the features' displacement r_l = p^1_l - p^0_l (target
+// minus rest position: the motion the images show, whatever the uncut model does across a gap) is
+// a function of their rest position p^0_l. Along a candidate line through c (in-plane
 // normal m, direction t, signed distance s = m . (p^0 - c), arc t . (p^0 - c)), only the features
 // of a strip beside the line are used, strip_half_width spacings wide on each side, so that any
 // deformation that is smooth at the scale the features resolve is, in the strip, close to its
-// first-order expansion on each side. Under H0 (one continuous deformation) the misfit is, per
-// component, continuous across the line with a slope that may change there (a strain the model
-// misses, concentrated at the line, is such a kink):
+// first-order expansion on each side. Under H0 (one continuous deformation) the displacement is,
+// per component, continuous across the line with a slope that may change there (a strain
+// concentrated at the line is such a kink):
 //   r = a0 + a1 t + a2 t^2 + (c+ + d+ t) max(s, 0) + (c- + d- t) min(s, 0) + noise,
 // the noise independent Gaussian tracking noise. Under H1 (two pieces separating along the line)
 // the side s > 0 is offset by a jump that may vary linearly along the line (a cut opens more at
@@ -26,8 +27,8 @@ namespace arreg::cutting {
 // sigma. The line's direction and its offset from c are searched (`directions` angles, offsets of
 // -1/2 to 1/2 spacing); the threshold is the F quantile at 1 - alpha / (number of lines tried)
 // (Bonferroni), alpha the one number the decision has: the probability of declaring a separation
-// where the misfit is continuous. Two facts of a cut, not tuned, complete it: a cut opens (the
-// pieces move apart: the jump's component from side 0 to side 1 is positive; material does not
+// where the displacement is continuous. Two facts of a cut, not tuned, complete it: a cut opens
+// (the pieces move apart: the jump's component from side 0 to side 1 is positive; material does not
 // interpenetrate), and a tracking failure concerns one feature, so the decision must hold with
 // any single feature left out.
 struct SeparationTestOptions {
@@ -46,7 +47,7 @@ struct SeparationTestOptions {
   // b [feature spacings]: width of the strip beside the line whose features are tested, on each
   // side from the feature nearest the line (the lips' features may be lost over a gap); the
   // spacing is the median distance of the given features to their nearest neighbour (rest). A
-  // misfit that varies over more than about one spacing is resolved as continuous. Default 4.
+  // displacement that varies over more than about one spacing is resolved as continuous. Default 4.
   double strip_half_width = 4.0;
 
   // Throws arreg::Error naming the offending field.
@@ -65,7 +66,7 @@ struct SeparationTestResult {
   double offset_mm = 0.0;         // the best line's offset from c along m
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();     // m: unit, rest coordinates, in-plane
   Eigen::Vector3d direction = Eigen::Vector3d::Zero();  // the line's direction (normal x m)
-  // g, misfit of side 1 minus side 0, at the strip's mean position along the line
+  // g, displacement of side 1 minus side 0, at the strip's mean position along the line
   Eigen::Vector3d jump_mm = Eigen::Vector3d::Zero();
   // g . o, o the unit direction from side 0's centroid to side 1's in the current positions
   double opening_mm = 0.0;
@@ -73,13 +74,14 @@ struct SeparationTestResult {
 
 // rest_mm: (#n x 3) p^0 of the features around c; current_mm: (#n x 3) their model points p^t,
 // which say in which direction the pieces separate in this frame (from the centroid of side 0 to
-// that of side 1); misfit_mm: (#n x 3) p^1 - p^t; centre_mm: c (rest coordinates).
+// that of side 1); displacement_mm: (#n x 3) p^1 - p^0; centre_mm: c (rest coordinates).
 // `along` (rest coordinates), when given, restricts the line's direction to within
 // `cone_deg` of it and the features to those ahead of c along it: a growing cut, c at the reach
 // of the cut already applied, continues its direction into the part the model has not cut. The
 // Bonferroni factor is then the number of lines tried in the cone (directions x offsets).
 SeparationTestResult TestSeparation(const RowMatX3d& rest_mm, const RowMatX3d& current_mm,
-                                    const RowMatX3d& misfit_mm, const Eigen::Vector3d& centre_mm,
+                                    const RowMatX3d& displacement_mm,
+                                    const Eigen::Vector3d& centre_mm,
                                     const SeparationTestOptions& options,
                                     const std::optional<Eigen::Vector3d>& along = std::nullopt,
                                     double cone_deg = 45.0);
