@@ -179,8 +179,7 @@ cutting::CutSummary CutHandler::CutWithRetry(const SurfaceMesh& s, cutting::CutC
   // Vertices merged into S can make S touch the boundary in a point (manifold guard); a
   // smaller tolerance may resolve it (a rejected event leaves the mesh unchanged). Going
   // straight to the exact test crossed 265 elements along an earlier crack, whose vertices lie
-  // within rounding of a new S that runs along it, instead of merging them (docs/cutting.md
-  // "Session 16").
+  // within rounding of a new S that runs along it, instead of merging them.
   constexpr double kSmallestTolerance = 0.01;
   while (cut.status == cutting::CutStatus::kRejected &&
          co.on_surface_tolerance > kSmallestTolerance) {

@@ -36,7 +36,7 @@ struct MechanicsStageOptions {
   // Newton iterations per sub-step: 1 is the thesis' one-step scheme; more iterate towards
   // convergence (newton_tolerance_mm 1e-6), each with the line search. Default 2: a cut band's
   // free lips turn by tens of degrees within a frame, and one step of the warped stiffness
-  // leaves them hanging across the opened notch (docs/cutting.md "Session 22").
+  // leaves them hanging across the opened notch.
   int newton_iterations = 2;
   // Rayleigh damping [1/s] and [s]; negative (default) takes the scene's material values.
   double rayleigh_mass_per_s = -1.0;
@@ -105,7 +105,7 @@ struct CuttingStageOptions {
   // at least). Later events of the cut go no deeper. A cut seen early, before its polyline
   // spans the organ, otherwise went through the full depth at its first event, where the next
   // event, one frame later, was held at 1/2 (synthetic kidney: 21 of 25 seeds; the internal
-  // structure's mean error rose by a quarter, docs/cutting.md "Session 17"). 0 disables.
+  // structure's mean error rose by a quarter). 0 disables.
   // Set by the pipeline from first_event_foresight, not a scene key.
   double foresight_mm = 0.0;
   // The pipeline sets foresight_mm to r_F (true, default) or 0 (false).
