@@ -667,9 +667,7 @@ void CutDetector::BuildProbe(bool front) {
   // From the end of the extension (ExtendedPolyline): S reaches that far already. An extremity
   // found at the border is probed too: the border test sees the alive features only, and
   // beyond a real border no pair crosses the probe.
-  double extension = options_.look_ahead ? r_pc : 0.0;
-  if (options_.extend_to_boundary && at_border)
-    extension = std::max(extension, options_.boundary_extension_mm);
+  const double extension = ExtensionLength(at_border);
   const Eigen::Vector3d origin = end + extension * dir;
   const double length = options_.probe_length_factor * r_f;
   const Eigen::Vector3d tip = origin + length * dir;
@@ -1102,9 +1100,7 @@ std::vector<Eigen::Vector3d> CutDetector::ExtendedPolyline(bool initial_frame) c
   // Extension beyond an extremity: the look-ahead (r_pc) or, at the border, the border
   // extension, whichever is longer.
   auto extension = [&](size_t end, size_t prev, bool at_border) -> std::optional<Eigen::Vector3d> {
-    double length = options_.look_ahead ? options_.cut_point_radius_mm : 0.0;
-    if (options_.extend_to_boundary && at_border)
-      length = std::max(length, options_.boundary_extension_mm);
+    const double length = ExtensionLength(at_border);
     const Eigen::Vector3d dir = pos(end) - pos(prev);
     if (length <= 0.0 || dir.norm() == 0.0) return std::nullopt;
     return pos(end) + length * dir.normalized();
@@ -1115,14 +1111,28 @@ std::vector<Eigen::Vector3d> CutDetector::ExtendedPolyline(bool initial_frame) c
   return out;
 }
 
+double CutDetector::ExtensionLength(bool at_border) const {
+  const double look_ahead = options_.look_ahead ? options_.cut_point_radius_mm : 0.0;
+  return options_.extend_to_boundary && at_border
+             ? std::max(look_ahead, options_.boundary_extension_mm)
+             : look_ahead;
+}
+
+std::vector<int> CutDetector::AliveWithin(const Eigen::Vector3d& initial_mm,
+                                          double radius_mm) const {
+  std::vector<int> near;
+  for (int f = 0; f < num_features(); ++f)
+    if (alive_[f] &&
+        (initial_mm_.row(f).transpose() - initial_mm).squaredNorm() < radius_mm * radius_mm)
+      near.push_back(f);
+  return near;
+}
+
 SeparationTestResult CutDetector::SeparationAt(const Eigen::Vector3d& initial_mm,
                                                const std::optional<Eigen::Vector3d>& along,
                                                DetectionResult* result) const {
-  const double radius = options_.separation_radius_factor * options_.neighbour_radius_mm;
-  std::vector<int> near;
-  for (int f = 0; f < num_features(); ++f)
-    if (alive_[f] && (initial_mm_.row(f).transpose() - initial_mm).squaredNorm() < radius * radius)
-      near.push_back(f);
+  const std::vector<int> near =
+      AliveWithin(initial_mm, options_.separation_radius_factor * options_.neighbour_radius_mm);
   const int n = static_cast<int>(near.size());
   RowMatX3d rest(n, 3), current(n, 3), displacement(n, 3);
   for (int k = 0; k < n; ++k) {
@@ -1137,11 +1147,7 @@ SeparationTestResult CutDetector::SeparationAt(const Eigen::Vector3d& initial_mm
 }
 
 Eigen::Vector3d CutDetector::CurrentPosition(const Eigen::Vector3d& initial_mm) const {
-  const double r2 = options_.neighbour_radius_mm * options_.neighbour_radius_mm;
-  std::vector<int> near;
-  for (int f = 0; f < num_features(); ++f)
-    if (alive_[f] && (initial_mm_.row(f).transpose() - initial_mm).squaredNorm() < r2)
-      near.push_back(f);
+  const std::vector<int> near = AliveWithin(initial_mm, options_.neighbour_radius_mm);
   const int n = static_cast<int>(near.size());
   if (n == 0) return initial_mm;
   Eigen::MatrixXd design(n, 4), current(n, 3);
@@ -1164,13 +1170,10 @@ bool CutDetector::TipGrowth(bool front, DetectionResult* result, CutPoint* point
       end.initial_position_mm - polyline_[front ? 1 : last - 1].initial_position_mm;
   if (dir.norm() == 0.0) return false;
   dir.normalize();
-  // From the end of the extension (ExtendedPolyline): S reaches that far already.
-  double extension = options_.look_ahead ? options_.cut_point_radius_mm : 0.0;
-  if (options_.extend_to_boundary && (front ? front_at_border_ : back_at_border_))
-    extension = std::max(extension, options_.boundary_extension_mm);
-  // Tested over the part ahead of the cut's reach; the new point lies r_pc into it, on the line
-  // the test found.
-  const Eigen::Vector3d reach = end.initial_position_mm + extension * dir;
+  // Tested over the part ahead of the cut's reach (the end of its extension, ExtendedPolyline);
+  // the new point lies r_pc into it, on the line the test found.
+  const Eigen::Vector3d reach =
+      end.initial_position_mm + ExtensionLength(front ? front_at_border_ : back_at_border_) * dir;
   const SeparationTestResult test = SeparationAt(reach, dir, result);
   if (!test.separated) {
     if (test.tested) ++result->not_separated;

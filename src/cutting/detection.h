@@ -486,6 +486,11 @@ class CutDetector {
   // of the end of its extension, within growth_cone_deg of its last segment's direction; fills
   // *point (r_pc into that part, on the line found) when it separates.
   bool TipGrowth(bool front, DetectionResult* result, CutPoint* point);
+  // The length of the extension beyond an extremity (ExtendedPolyline): the look-ahead r_pc or,
+  // at the border, the border extension, whichever is longer.
+  double ExtensionLength(bool at_border) const;
+  // The alive features whose frame-0 positions lie within radius_mm of initial_mm.
+  std::vector<int> AliveWithin(const Eigen::Vector3d& initial_mm, double radius_mm) const;
   // This frame's model position of a frame-0 point: the least-squares affine map from p^0 to p^t
   // of the alive features within r_F of it (their mean translation when fewer than 4).
   Eigen::Vector3d CurrentPosition(const Eigen::Vector3d& initial_mm) const;
