@@ -37,6 +37,8 @@ void CorotationalElasticity::Update(const MechanicalState& state, const RowMatX3
     quaternions_.resize(nt, Eigen::Quaterniond::Identity());
     rotated_gradients_.resize(nt);
   }
+  const bool jacobian = options_.volume_term == VolumeTerm::kJacobian;
+  if (jacobian) volume_gradients_.resize(nt);
   const bool polar = options_.rotation_method == RotationMethod::kPolar;
   const RowMatX4i& tets = state.tetrahedra();
   inverted_.clear();
@@ -68,7 +70,10 @@ void CorotationalElasticity::Update(const MechanicalState& state, const RowMatX3
       const int t = begin + k;
       const TetRestData& rest = state.rest_data(t);
       rotated_gradients_[t].noalias() = rest.shape_gradients * rotations_[t].transpose();
-      energy += CorotationalEnergyOfF(rest, rotations_[t], F[k]);  // for Value at x
+      if (jacobian)
+        volume_gradients_[t].noalias() = rest.shape_gradients * Cofactor(F[k]).transpose();
+      energy +=
+          CorotationalEnergyOfF(rest, rotations_[t], F[k], options_.volume_term);  // for Value
     }
   }
   energy_ = energy;
@@ -81,7 +86,8 @@ double CorotationalElasticity::Value(const MechanicalState& state, const RowMatX
   if (UpdatedAt(state, x)) return energy_;
   double e = 0.0;
   for (int t = 0; t < state.num_tetrahedra(); ++t)
-    e += CorotationalEnergy(state.rest_data(t), rotations_[t], state.TetPositions(t, x));
+    e += CorotationalEnergy(state.rest_data(t), rotations_[t], state.TetPositions(t, x),
+                            options_.volume_term);
   return e;
 }
 
@@ -92,7 +98,8 @@ void CorotationalElasticity::AddGradient(const MechanicalState& state, const Row
   const RowMatX4i& tets = state.tetrahedra();
   for (int t = 0; t < state.num_tetrahedra(); ++t) {
     Eigen::Matrix<double, 4, 3> g = Eigen::Matrix<double, 4, 3>::Zero();
-    AddCorotationalGradient(state.rest_data(t), rotations_[t], state.TetPositions(t, x), &g);
+    AddCorotationalGradient(state.rest_data(t), rotations_[t], state.TetPositions(t, x), &g,
+                            options_.volume_term);
     for (int a = 0; a < 4; ++a) gradient->row(tets(t, a)) += g.row(a);
   }
 }
@@ -106,22 +113,27 @@ void CorotationalElasticity::AddHessian(const MechanicalState& state, const RowM
   // and its transpose from the same products).
   const RowMatX4i& tets = state.tetrahedra();
   double* values = hessian->values();
+  const bool jacobian = options_.volume_term == VolumeTerm::kJacobian;
   for (int t = 0; t < state.num_tetrahedra(); ++t) {
     const TetRestData& rest = state.rest_data(t);
     const Eigen::Matrix<double, 4, 3>& g = rotated_gradients_[t];
+    // The lambda block's gradients: R g_a (kLinear) or cof(F) g_a (kJacobian, Gauss-Newton).
+    const Eigen::Matrix<double, 4, 3>& h = jacobian ? volume_gradients_[t] : g;
     const double vl = scale * rest.volume_mm3 * rest.lambda_kpa;
     const double vm = scale * rest.volume_mm3 * rest.mu_kpa;
     int stride[4];
     for (int a = 0; a < 4; ++a) stride[a] = hessian->column_stride(tets(t, a));
     for (int a = 0; a < 4; ++a) {
       const double ga[3] = {g(a, 0), g(a, 1), g(a, 2)};
+      const double ha[3] = {h(a, 0), h(a, 1), h(a, 2)};
       for (int b = a; b < 4; ++b) {
         const double gb[3] = {g(b, 0), g(b, 1), g(b, 2)};
+        const double hb[3] = {h(b, 0), h(b, 1), h(b, 2)};
         const double d = vm * (ga[0] * gb[0] + ga[1] * gb[1] + ga[2] * gb[2]);
-        // block(r, c) = vl ga_r gb_c + vm gb_r ga_c + d delta_rc.
+        // block(r, c) = vl ha_r hb_c + vm gb_r ga_c + d delta_rc.
         double block[3][3];
         for (int r = 0; r < 3; ++r)
-          for (int c = 0; c < 3; ++c) block[r][c] = vl * ga[r] * gb[c] + vm * gb[r] * ga[c];
+          for (int c = 0; c < 3; ++c) block[r][c] = vl * ha[r] * hb[c] + vm * gb[r] * ga[c];
         for (int r = 0; r < 3; ++r) block[r][r] += d;
         double* ab = values + hessian->BlockSlot(t, a, b);
         for (int c = 0; c < 3; ++c)

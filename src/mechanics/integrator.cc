@@ -318,8 +318,9 @@ StepSummary ImplicitEulerIntegrator::SubStep(MechanicalState* state,
         double phi = potential(y, false);
         for (const auto& [e, R0] : frozen_) {
           const Eigen::Matrix<double, 4, 3> ye = state->TetPositions(e, y);
-          phi += CorotationalEnergy(state->rest_data(e), R0, ye) -
-                 CorotationalEnergy(state->rest_data(e), elastic->rotations()[e], ye);
+          phi += CorotationalEnergy(state->rest_data(e), R0, ye, elastic->options().volume_term) -
+                 CorotationalEnergy(state->rest_data(e), elastic->rotations()[e], ye,
+                                    elastic->options().volume_term);
         }
         // With an allowance for round-off in the summed potential, so that a step near the
         // minimum is not rejected for noise; the smallest step is taken rather than none.

@@ -256,32 +256,50 @@ Eigen::Matrix3d CorotatedStrainOfF(const Eigen::Matrix3d& R, const Eigen::Matrix
   eps.diagonal().array() -= 1.0;
   return eps;
 }
-Eigen::Matrix3d CorotatedStrain(const TetRestData& rest, const Eigen::Matrix3d& R,
-                                const Eigen::Matrix<double, 4, 3>& x) {
-  return CorotatedStrainOfF(R, DeformationGradient(rest, x));
-}
 }  // namespace
 
+VolumeTerm ParseVolumeTerm(const std::string& name) {
+  if (name == "linear") return VolumeTerm::kLinear;
+  if (name == "jacobian") return VolumeTerm::kJacobian;
+  throw Error("", "volume term", "unknown '" + name + "' (expected linear or jacobian)");
+}
+
+const char* VolumeTermName(VolumeTerm term) {
+  return term == VolumeTerm::kJacobian ? "jacobian" : "linear";
+}
+
+Eigen::Matrix3d Cofactor(const Eigen::Matrix3d& F) {
+  Eigen::Matrix3d c;
+  c.col(0) = F.col(1).cross(F.col(2));
+  c.col(1) = F.col(2).cross(F.col(0));
+  c.col(2) = F.col(0).cross(F.col(1));
+  return c;
+}
+
 double CorotationalEnergyOfF(const TetRestData& rest, const Eigen::Matrix3d& R,
-                             const Eigen::Matrix3d& F) {
+                             const Eigen::Matrix3d& F, VolumeTerm volume) {
   const Eigen::Matrix3d eps = CorotatedStrainOfF(R, F);
-  const double tr = eps.trace();
+  const double tr = volume == VolumeTerm::kJacobian ? F.determinant() - 1.0 : eps.trace();
   return rest.volume_mm3 * (rest.mu_kpa * eps.squaredNorm() + 0.5 * rest.lambda_kpa * tr * tr);
 }
 
 double CorotationalEnergy(const TetRestData& rest, const Eigen::Matrix3d& R,
-                          const Eigen::Matrix<double, 4, 3>& x) {
-  return CorotationalEnergyOfF(rest, R, DeformationGradient(rest, x));
+                          const Eigen::Matrix<double, 4, 3>& x, VolumeTerm volume) {
+  return CorotationalEnergyOfF(rest, R, DeformationGradient(rest, x), volume);
 }
 
 void AddCorotationalGradient(const TetRestData& rest, const Eigen::Matrix3d& R,
                              const Eigen::Matrix<double, 4, 3>& x,
-                             Eigen::Matrix<double, 4, 3>* gradient) {
-  const Eigen::Matrix3d eps = CorotatedStrain(rest, R, x);
+                             Eigen::Matrix<double, 4, 3>* gradient, VolumeTerm volume) {
+  const Eigen::Matrix3d F = DeformationGradient(rest, x);
+  const Eigen::Matrix3d eps = CorotatedStrainOfF(R, F);
   Eigen::Matrix3d sigma = 2.0 * rest.mu_kpa * eps;
-  sigma.diagonal().array() += rest.lambda_kpa * eps.trace();
+  if (volume == VolumeTerm::kLinear) sigma.diagonal().array() += rest.lambda_kpa * eps.trace();
   // dE/dx_a = V R sigma g_a; as rows: V g_a^T sigma R^T (sigma symmetric).
-  const Eigen::Matrix3d p = rest.volume_mm3 * (R * sigma).transpose();
+  Eigen::Matrix3d p = rest.volume_mm3 * (R * sigma).transpose();
+  // d/dx_a of V lambda/2 (J - 1)^2 = V lambda (J - 1) cof(F) g_a; as rows g_a^T cof(F)^T.
+  if (volume == VolumeTerm::kJacobian)
+    p += rest.volume_mm3 * rest.lambda_kpa * (F.determinant() - 1.0) * Cofactor(F).transpose();
   gradient->noalias() += rest.shape_gradients * p;
 }
 

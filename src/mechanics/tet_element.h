@@ -39,6 +39,21 @@ enum class RotationMethod {
   kQr,
 };
 RotationMethod ParseRotationMethod(const std::string& name);  // "polar", "polar-svd", "qr"
+
+// The volumetric part of the element energy V lambda/2 psi.
+enum class VolumeTerm {
+  // psi = tr(eps)^2, eps = sym(R^T F - I): corotational linear elasticity. tr(eps) is the
+  // volume change only to first order: a stretch s along one axis with tr(eps) = 0 contracts
+  // the other two by (s - 1)/2 each, so at s = 1.8 they keep 0.6 of their size and the volume
+  // shrinks to 0.65, where an incompressible material keeps 0.75 and the volume.
+  kLinear,
+  // psi = (J - 1)^2, J = det F: the exact volume ratio ("fixed corotational", Stomakhin et al.
+  // 2012); the shear part mu |sym(R^T F) - I|^2 is the same. Equal to kLinear to first order
+  // at rest; under large stretch it keeps the volume as the material's nu says.
+  kJacobian,
+};
+VolumeTerm ParseVolumeTerm(const std::string& name);  // "linear", "jacobian"
+const char* VolumeTermName(VolumeTerm term);
 const char* RotationMethodName(RotationMethod method);
 
 // Rest-state data of one linear tetrahedron. The rest element stiffness is
@@ -86,16 +101,23 @@ int PolarRotations(int count, const Eigen::Matrix3d* F, Eigen::Quaterniond* rota
 //   E_e(x) = V (mu eps:eps + lambda/2 tr(eps)^2),  eps = sym(R^T F(x) - I)
 // equal to 1/2 u^T K_e u with u = R^T x - X. Units: uJ.
 // The same from the element's deformation gradient F.
+// With VolumeTerm::kJacobian the volumetric part is V lambda/2 (det F - 1)^2 instead.
 double CorotationalEnergyOfF(const TetRestData& rest, const Eigen::Matrix3d& R,
-                             const Eigen::Matrix3d& F);
+                             const Eigen::Matrix3d& F, VolumeTerm volume = VolumeTerm::kLinear);
 double CorotationalEnergy(const TetRestData& rest, const Eigen::Matrix3d& R,
-                          const Eigen::Matrix<double, 4, 3>& x);
+                          const Eigen::Matrix<double, 4, 3>& x,
+                          VolumeTerm volume = VolumeTerm::kLinear);
 
 // Adds the gradient dE_e/dx (fixed R) = R K_e (R^T x - X) to `gradient`
 // (row a = vertex a, mN). The force is its negative.
+// kJacobian: the volumetric part's gradient is V lambda (J - 1) cof(F) g_a instead (exact).
 void AddCorotationalGradient(const TetRestData& rest, const Eigen::Matrix3d& R,
                              const Eigen::Matrix<double, 4, 3>& x,
-                             Eigen::Matrix<double, 4, 3>* gradient);
+                             Eigen::Matrix<double, 4, 3>* gradient,
+                             VolumeTerm volume = VolumeTerm::kLinear);
+
+// Cofactor matrix cof(F) = dJ/dF = det(F) F^-T (also for singular F).
+Eigen::Matrix3d Cofactor(const Eigen::Matrix3d& F);
 
 // The 3x3 block (a, b) of the warped stiffness R K_e R^T (stiffness warping:
 // dR/dx is neglected), in mN/mm. Symmetric: block(b, a) = block(a, b)^T.
