@@ -31,8 +31,8 @@ bool PairLess(const FeaturePair& a, const FeaturePair& b) {
   return a.first != b.first ? a.first < b.first : a.second < b.second;
 }
 
-// Median over (at most kMaxSamples evenly strided) features of the distance to their k-th
-// nearest other feature; 0 when fewer than two features. O(#samples * #F) once per Initialize.
+}  // namespace
+
 double MedianKthNeighbourDistance(const RowMatX3d& points_mm, int k) {
   constexpr int kMaxSamples = 1000;
   const int n = static_cast<int>(points_mm.rows());
@@ -51,8 +51,6 @@ double MedianKthNeighbourDistance(const RowMatX3d& points_mm, int k) {
   std::nth_element(kth.begin(), mid, kth.end());
   return std::sqrt(*mid);
 }
-
-}  // namespace
 
 void CutDetectorOptions::Check() const {
   auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
@@ -198,6 +196,80 @@ void CutDetector::Initialize(const RowMatX3d& initial_positions_mm, const std::v
   ever_paired_.reserve(2 * pairs_.size());
   for (const FeaturePair& p : pairs_) ever_paired_.insert(PairKey(p.first, p.second));
   std::sort(pairs_.begin(), pairs_.end(), PairLess);
+}
+
+void CutDetector::AddFeatures(const RowMatX3d& rest_positions_mm, const std::vector<int>& ids) {
+  const int added = static_cast<int>(rest_positions_mm.rows());
+  ARREG_CHECK_INPUT(static_cast<int>(ids.size()) == added, "", "CutDetector::AddFeatures",
+                    "ids has ", ids.size(), " entries for ", added, " positions");
+  ARREG_CHECK_INPUT(rest_positions_mm.allFinite(), "", "CutDetector::AddFeatures",
+                    "rest positions must be finite");
+  if (added == 0) return;
+  const int old_n = num_features(), n = old_n + added;
+  std::unordered_set<int> fresh;
+  for (int id : ids)
+    ARREG_CHECK_INPUT(!index_of_id_.count(id) && fresh.insert(id).second, "",
+                      "CutDetector::AddFeatures", "feature id ", id, " is already known");
+  for (int i = 0; i < added; ++i) index_of_id_.emplace(ids[i], old_n + i);
+  // PairKey depends on the feature count: re-key the pairs seen so far.
+  std::vector<std::pair<int, int>> seen;
+  seen.reserve(ever_paired_.size());
+  for (long long key : ever_paired_)
+    seen.emplace_back(static_cast<int>(key / old_n), static_cast<int>(key % old_n));
+  initial_mm_.conservativeResize(n, 3);
+  initial_mm_.bottomRows(added) = rest_positions_mm;
+  ever_paired_.clear();
+  for (const auto& [a, b] : seen) ever_paired_.insert(PairKey(a, b));
+  alive_.resize(n, 1);
+  row_of_feature_.resize(n, -1);
+  cluster_count_.resize(n, 0);
+  bridge_candidates_.resize(n);
+  // Lists of nearby features are cached: the new ones belong in them.
+  bridge_candidates_known_.assign(n, 0);
+  for (RowMatX3d* m : {&model_mm_, &target_mm_}) {
+    m->conservativeResize(n, 3);
+    m->bottomRows(added).setZero();
+  }
+  for (RowMatX3d& past : target_history_)
+    if (past.rows() > 0) {
+      past.conservativeResize(n, 3);
+      past.bottomRows(added).setConstant(std::numeric_limits<double>::quiet_NaN());
+    }
+  if (old_n == 0) grid_origin_mm_ = initial_mm_.colwise().minCoeff();
+  cell_of_.resize(n);
+  for (int i = old_n; i < n; ++i) {
+    cell_of_[i] = CellKey(initial_mm_.row(i).transpose());
+    grid_.emplace(CellHash(cell_of_[i](0), cell_of_[i](1), cell_of_[i](2)), i);
+  }
+  const double r2 = options_.neighbour_radius_mm * options_.neighbour_radius_mm;
+  const double r_pc2 = options_.cut_point_radius_mm * options_.cut_point_radius_mm;
+  const size_t kept = pairs_.size();
+  for (int i = old_n; i < n; ++i) {
+    const Eigen::Vector3d pi = initial_mm_.row(i).transpose();
+    for (long long dx = -1; dx <= 1; ++dx)
+      for (long long dy = -1; dy <= 1; ++dy)
+        for (long long dz = -1; dz <= 1; ++dz) {
+          const Eigen::Matrix<long long, 3, 1> c =
+              cell_of_[i] + Eigen::Matrix<long long, 3, 1>(dx, dy, dz);
+          auto range = grid_.equal_range(CellHash(c(0), c(1), c(2)));
+          for (auto it = range.first; it != range.second; ++it) {
+            const int j = it->second;
+            // New-new pairs once (j < i); the hash may collide: compare the real cell keys.
+            if (j == i || (j >= old_n && j > i) || !alive_[j] || cell_of_[j] != c) continue;
+            const Eigen::Vector3d pj = initial_mm_.row(j).transpose();
+            if ((pi - pj).squaredNorm() >= r2) continue;
+            bool crosses_cut = false;
+            for (const CutPoint& q : polyline_)
+              crosses_cut =
+                  crosses_cut || SquaredDistanceToSegment(pi, pj, q.initial_position_mm) < r_pc2;
+            if (crosses_cut) continue;
+            pairs_.push_back({std::min(i, j), std::max(i, j)});
+            ever_paired_.insert(PairKey(i, j));
+          }
+        }
+  }
+  std::sort(pairs_.begin() + kept, pairs_.end(), PairLess);
+  std::inplace_merge(pairs_.begin(), pairs_.begin() + kept, pairs_.end(), PairLess);
 }
 
 Eigen::Matrix<long long, 3, 1> CutDetector::CellKey(const Eigen::Vector3d& p0) const {

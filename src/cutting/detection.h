@@ -360,6 +360,10 @@ struct DetectionResult {
   std::vector<Eigen::Vector3d> extended_polyline_mm;  // polyline with look-ahead/border extensions
 };
 
+// Median over the points (at most 1000 evenly strided) of the distance to their k-th nearest
+// other point, mm; 0 when fewer than two. O(#samples * #points).
+double MedianKthNeighbourDistance(const RowMatX3d& points_mm, int k);
+
 // Stateful detector: C_F is built once, then every Update evaluates mu on the remaining pairs,
 // inserts cut points and prunes pairs. Single-threaded; Update allocates nothing once the result
 // vectors have reached their size, except in frames where features die (bridges).
@@ -372,6 +376,14 @@ class CutDetector {
   // neighbours_per_feature > 0, then builds C_F with a uniform grid of cell size r_F. Resets the
   // polyline.
   void Initialize(const RowMatX3d& initial_positions_mm, const std::vector<int>& ids);
+
+  // Features attached after frame 0 (the tracker's fill-in of areas whose features were lost):
+  // rest_positions_mm (#N x 3) are their points on the model's rest configuration, the frame
+  // the measure compares with (delta^0). Each joins C_F with every alive feature, and every
+  // other new one, within r_F at rest whose segment passes no cut point within r_pc (as a
+  // bridge would). The radii stay those resolved at Initialize. Throws arreg::Error for ids
+  // already known or mismatched rows.
+  void AddFeatures(const RowMatX3d& rest_positions_mm, const std::vector<int>& ids);
 
   // Evaluates one frame; throws arreg::Error for unknown or repeated ids or mismatched rows.
   void Update(const FrameFeatures& frame, DetectionResult* result);

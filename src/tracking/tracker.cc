@@ -115,6 +115,9 @@ void FeatureTrackerOptions::Check() const {
                     border_px);
   ARREG_CHECK_INPUT(redetect_every_frames >= 0, "", "FeatureTrackerOptions.redetect_every_frames",
                     "must be >= 0, got ", redetect_every_frames);
+  ARREG_CHECK_INPUT(redetect_hole_factor >= 0 && std::isfinite(redetect_hole_factor), "",
+                    "FeatureTrackerOptions.redetect_hole_factor", "must be >= 0, got ",
+                    redetect_hole_factor);
 }
 
 // ---------------------------------------------------------------------------
@@ -502,6 +505,25 @@ bool FeatureTracker::InsideRoi(cv::Point2f p, const cv::Mat& roi_mask) const {
   return roi_mask.empty() || MaskHas(roi_mask, p);
 }
 
+namespace {
+
+// Median over the features of the distance to the nearest other one, pixels; 0 for fewer than
+// two. Quadratic: called once, on frame 0's features (at most max_features).
+double MedianNearestNeighbourDistance(const std::vector<FeatureState>& features) {
+  if (features.size() < 2) return 0.0;
+  std::vector<double> nearest(features.size(), std::numeric_limits<double>::infinity());
+  for (size_t i = 0; i < features.size(); ++i)
+    for (size_t j = i + 1; j < features.size(); ++j) {
+      const double d = cv::norm(features[i].position_px - features[j].position_px);
+      nearest[i] = std::min(nearest[i], d);
+      nearest[j] = std::min(nearest[j], d);
+    }
+  std::nth_element(nearest.begin(), nearest.begin() + nearest.size() / 2, nearest.end());
+  return nearest[nearest.size() / 2];
+}
+
+}  // namespace
+
 int FeatureTracker::Detect(const cv::Mat& roi_mask) {
   const int room = options_.max_features - num_active();
   if (room <= 0) return 0;
@@ -510,12 +532,24 @@ int FeatureTracker::Detect(const cv::Mat& roi_mask) {
   surf_.Detect(roi_mask, &candidates);
 
   // Greedy by strength: keep points off highlights, inside the border and at
-  // least min_distance_px from every kept or followed feature (grid lookup).
+  // least min_distance_px from every kept or followed feature (grid lookup). A re-detection
+  // that fills holes (redetect_hole_factor) keeps the new points farther from the followed
+  // features and from each other.
   const float min_distance = static_cast<float>(options_.min_distance_px);
-  const float cell = std::max(1.f, min_distance);
+  const bool fill_holes =
+      frame_ > 0 && options_.redetect_hole_factor > 0.0 && initial_spacing_px_ > 0.0;
+  const float from_new =
+      fill_holes ? std::max(min_distance, static_cast<float>(initial_spacing_px_)) : min_distance;
+  const float from_followed =
+      fill_holes ? std::max(min_distance,
+                            static_cast<float>(options_.redetect_hole_factor * initial_spacing_px_))
+                 : min_distance;
+  const float cell = std::max({1.f, from_new, from_followed});
   const int grid_cols = static_cast<int>(gray_.cols / cell) + 1;
   const int grid_rows = static_cast<int>(gray_.rows / cell) + 1;
-  std::vector<std::vector<cv::Point2f>> grid(static_cast<size_t>(grid_cols) * grid_rows);
+  // (point, whether it is a followed feature) per cell.
+  std::vector<std::vector<std::pair<cv::Point2f, bool>>> grid(static_cast<size_t>(grid_cols) *
+                                                              grid_rows);
   auto cell_of = [&](cv::Point2f p) {
     return cv::Point(std::clamp(static_cast<int>(p.x / cell), 0, grid_cols - 1),
                      std::clamp(static_cast<int>(p.y / cell), 0, grid_rows - 1));
@@ -524,17 +558,18 @@ int FeatureTracker::Detect(const cv::Mat& roi_mask) {
     const cv::Point g = cell_of(p);
     for (int gy = std::max(0, g.y - 1); gy <= std::min(grid_rows - 1, g.y + 1); ++gy)
       for (int gx = std::max(0, g.x - 1); gx <= std::min(grid_cols - 1, g.x + 1); ++gx)
-        for (const cv::Point2f& q : grid[gy * grid_cols + gx])
-          if ((p.x - q.x) * (p.x - q.x) + (p.y - q.y) * (p.y - q.y) < min_distance * min_distance)
-            return true;
+        for (const auto& [q, followed] : grid[gy * grid_cols + gx]) {
+          const float d = followed ? from_followed : from_new;
+          if ((p.x - q.x) * (p.x - q.x) + (p.y - q.y) * (p.y - q.y) < d * d) return true;
+        }
     return false;
   };
-  auto occupy = [&](cv::Point2f p) {
+  auto occupy = [&](cv::Point2f p, bool followed) {
     const cv::Point g = cell_of(p);
-    grid[g.y * grid_cols + g.x].push_back(p);
+    grid[g.y * grid_cols + g.x].emplace_back(p, followed);
   };
   for (const FeatureState& f : current_)
-    if (f.status == TrackStatus::kTracked) occupy(f.position_px);
+    if (f.status == TrackStatus::kTracked) occupy(f.position_px, true);
 
   const float border = static_cast<float>(options_.border_px);
   std::vector<SurfKeypoint> accepted;
@@ -546,7 +581,7 @@ int FeatureTracker::Detect(const cv::Mat& roi_mask) {
           p.y > gray_.rows - 1 - border)
         continue;
       if (IsSpecular(p) || crowded(p)) continue;
-      occupy(p);
+      occupy(p, false);
       accepted.push_back(kp);
     }
   };
@@ -1076,6 +1111,7 @@ TrackFrameSummary FeatureTracker::Initialize(const cv::Mat& image, const cv::Mat
   summary.frame = 0;
   summary.num_new = Detect(free_roi_);
   summary.num_active = summary.num_new;
+  initial_spacing_px_ = MedianNearestNeighbourDistance(current_);
   summary.count[static_cast<int>(TrackStatus::kTracked)] = summary.num_new;
   return summary;
 }

@@ -181,6 +181,13 @@ struct FeatureTrackerOptions {
   // Re-detection: every `redetect_every_frames` frames (0 = never, the default)
   // new SURF points fill the ROI away from the followed ones; they get new ids.
   int redetect_every_frames = 0;
+  // Re-detection fills holes only: with s the median distance from each frame-0 feature to its
+  // nearest other one, a re-detected point lies at least redetect_hole_factor * s from every
+  // followed feature and at least s from the other new points, so an area whose features were
+  // lost (occlusion, tissue turning away) is covered again at frame 0's density while a
+  // well-covered area gets nothing. Features lost one by one leave no hole; a patch of them
+  // does. 0 = fill anywhere, min_distance_px apart. Default 2.
+  double redetect_hole_factor = 2.0;
 
   void Check() const;  // throws arreg::Error naming the bad field
 };
@@ -265,6 +272,9 @@ class FeatureTracker {
   bool InsideRoi(cv::Point2f p, const cv::Mat& roi_mask) const;
   // Detects new features in the current frame away from the active ones.
   int Detect(const cv::Mat& roi_mask);
+  // Median distance from each frame-0 feature to its nearest other one, pixels (0 when fewer
+  // than two): the spacing re-detection fills holes with.
+  double initial_spacing_px_ = 0.0;
   // Remembers the features lost in this frame that may be re-identified later.
   void RememberLost();
   // Looks for the remembered features among this frame's SURF points.

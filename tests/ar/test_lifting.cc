@@ -277,6 +277,47 @@ TEST(FeatureLifter, RayCastFollowsTheDeformedSurfaceAndKeepsLostTargets) {
   EXPECT_NEAR(lifter.targets_mm()(0, 2), 104.0, 1e-9);
 }
 
+// Features that join later are cast against the surface as it stands then, appended after the
+// first ones, and carried by eq. 7.1 from their own first frame: a feature whose pixel stays put
+// keeps its target while the plane moves nothing.
+TEST(FeatureLifter, FeaturesAttachedLaterHitTheCurrentSurface) {
+  const PinholeCamera camera = FrontCamera();
+  SurfaceMesh patch = MakeBumpyPatch(-30, 30, -30, 30, 100, 2, 10);
+  FeatureLifter lifter;  // surface targets, eq. 7.1 updates
+  RowMatX2d pixels(3, 2);
+  pixels << 320, 240, 360, 200, 290, 270;
+  lifter.Attach(camera, pixels, &patch, std::nullopt);
+  RowMatX3d moved = patch.vertices;
+  moved.col(2).array() += 6.0;  // the model now lies 6 mm farther
+  RowMatX2d later(2, 2);
+  later << 330, 250, 2000, 240;  // the second ray misses the patch
+  const std::vector<FeatureAttachment> more =
+      lifter.AttachMore(RaysThroughPixels(camera, later), &moved);
+  ASSERT_EQ(more.size(), 2u);
+  ASSERT_TRUE(more[0].attached);
+  EXPECT_FALSE(more[1].attached);
+  EXPECT_EQ(lifter.targets_mm().rows(), 5);
+  EXPECT_EQ(lifter.status()[3], LiftStatus::kSurfaceHit);
+  EXPECT_EQ(lifter.status()[4], LiftStatus::kNotAttached);
+  // On the moved surface (its triangle, at the returned weights), on the ray.
+  const Eigen::Vector3d p = more[0].point_mm;
+  Eigen::Vector3d on_face = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 3; ++k)
+    on_face += more[0].barycentric(k) * moved.row(patch.faces(more[0].face, k)).transpose();
+  EXPECT_LT((p - on_face).norm(), 1e-9);
+  EXPECT_NEAR(p.z(), 106.0 + 2 * std::sin(p.x() / 17.0) * std::cos(p.y() / 11.0), 0.1);
+  const Eigen::Vector2d px = camera.Project(p);
+  EXPECT_NEAR(px.x(), 330.0, 1e-6);
+  EXPECT_NEAR(px.y(), 250.0, 1e-6);
+  // Next frame, same pixels: every attached target stays where it is.
+  RowMatX2d all(5, 2);
+  all << pixels, later;
+  const RowMatX3d before = lifter.targets_mm();
+  lifter.Update(camera, all, {}, nullptr);
+  for (int r : {0, 1, 2, 3}) EXPECT_LT((lifter.targets_mm().row(r) - before.row(r)).norm(), 1e-9);
+  EXPECT_EQ(lifter.status()[4], LiftStatus::kNotAttached);
+}
+
 TEST(FeatureLifterOptions, CheckNamesTheField) {
   FeatureLifterOptions o;
   o.max_depth_jump_mm = -1;

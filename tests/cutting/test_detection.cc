@@ -299,6 +299,55 @@ TEST(CutDetector, NeighbourGraphEqualsBruteForce) {
   }
 }
 
+// Features attached after frame 0 join C_F as if they had been there from the start: the pairs
+// within r_F of the whole set, each once; the radii stay those resolved from the first features.
+TEST(CutDetector, AddedFeaturesJoinTheGraphLikeInitialOnes) {
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> u(-40.0, 40.0);
+  const int n = 400, first = 250;
+  RowMatX3d p(n, 3);
+  std::vector<int> ids;
+  for (int i = 0; i < n; ++i) {
+    p.row(i) << u(rng), u(rng), 0.25 * u(rng);
+    ids.push_back(5 * i + 3);
+  }
+  CutDetector detector;
+  detector.Initialize(p.topRows(first), std::vector<int>(ids.begin(), ids.begin() + first));
+  const double r = detector.options().neighbour_radius_mm;
+  // Features 250..399 join in two groups (they pair with each other across the groups too).
+  detector.AddFeatures(p.middleRows(first, 100),
+                       std::vector<int>(ids.begin() + first, ids.begin() + first + 100));
+  detector.AddFeatures(p.bottomRows(n - first - 100),
+                       std::vector<int>(ids.begin() + first + 100, ids.end()));
+  EXPECT_EQ(detector.options().neighbour_radius_mm, r);
+  EXPECT_EQ(detector.num_features(), n);
+  std::set<std::pair<int, int>> expected, got;
+  for (int i = 0; i < n; ++i)
+    for (int j = i + 1; j < n; ++j)
+      if ((p.row(i) - p.row(j)).norm() < r) expected.insert({i, j});
+  for (const FeaturePair& q : detector.pairs()) got.insert({q.first, q.second});
+  EXPECT_EQ(got.size(), detector.pairs().size()) << "duplicate pairs";
+  EXPECT_EQ(got, expected);
+  EXPECT_TRUE(std::is_sorted(detector.pairs().begin(), detector.pairs().end(),
+                             [](const FeaturePair& a, const FeaturePair& b) {
+                               return std::make_pair(a.first, a.second) <
+                                      std::make_pair(b.first, b.second);
+                             }));
+  // A known id cannot join again; mismatched rows are refused.
+  EXPECT_THROW(detector.AddFeatures(p.topRows(1), {ids[0]}), Error);
+  EXPECT_THROW(detector.AddFeatures(p.topRows(2), {99999}), Error);
+  // Every feature, old and new, is evaluated: a rigid translation of all of them is no outlier.
+  FrameFeatures frame;
+  frame.ids = ids;
+  frame.target_mm = p.rowwise() + Eigen::RowVector3d(3.0, -2.0, 1.0);
+  frame.model_mm = frame.target_mm;
+  DetectionResult result;
+  detector.Update(frame, &result);
+  EXPECT_EQ(result.pairs.size(), expected.size());
+  EXPECT_TRUE(result.outliers.empty());
+  for (double mu : result.measure) EXPECT_NEAR(mu, 0.0, 1e-9);
+}
+
 // The default r_F is the median distance to the 26th nearest feature: on a square grid, 3
 // spacings for an interior feature (4 + 4 + 4 + 8 + 4 neighbours at squared distances 1, 2, 4,
 // 5, 8, then 4 more at 9). r_pc and the border extension keep their ratios to r_F (7/15, 15/15).

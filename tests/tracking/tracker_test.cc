@@ -189,6 +189,54 @@ TEST(FeatureTracker, RedetectionAddsNewIdsAwayFromTrackedFeatures) {
   EXPECT_LE(tracker.num_active(), options.max_features);
 }
 
+// Re-detection fills holes only (redetect_hole_factor): a patch whose features are lost (hidden
+// for a frame by a flat occluder) is covered again, at about frame 0's spacing, and nothing is
+// added where the features are still followed.
+TEST(FeatureTracker, RedetectionFillsTheHoleTheLostFeaturesLeft) {
+  const cv::Mat a = Texture(300, 300, 15);
+  FeatureTrackerOptions options;
+  options.redetect_every_frames = 1;
+  options.reidentify.enabled = false;  // the hole stays a hole
+  FeatureTracker tracker(options);
+  tracker.Initialize(a);
+  const int first_ids = tracker.store().num_features();
+  ASSERT_GT(first_ids, 100);
+  // Frame 1: nothing moved, nothing lost: no hole, nothing new.
+  EXPECT_EQ(tracker.Track(a).num_new, 0);
+  // Frame 2: a flat square hides the middle; its features are lost.
+  const cv::Rect hole(100, 100, 100, 100);
+  cv::Mat hidden = a.clone();
+  hidden(hole).setTo(cv::Scalar::all(110));
+  tracker.Track(hidden);
+  // Frame 3: the texture is back; only the square gets new features.
+  const auto summary = tracker.Track(a);
+  EXPECT_GT(summary.num_new, 5);
+  std::vector<cv::Point2f> added;
+  for (const FeatureState& f : tracker.current())
+    if (f.id >= first_ids && f.status == TrackStatus::kTracked) added.push_back(f.position_px);
+  ASSERT_GE(static_cast<int>(added.size()),
+            summary.num_new);  // and a few at the square's edge in frame 2
+  // The features around the square are followed, so the new ones keep 2 spacings from them:
+  // they lie well inside a square grown by the SURF window's reach.
+  const cv::Rect grown(hole.x - 10, hole.y - 10, hole.width + 20, hole.height + 20);
+  for (const cv::Point2f& p : added) EXPECT_TRUE(grown.contains(p)) << p;
+  // Frame 0's density, not the densest packing: at least the median spacing apart.
+  std::vector<double> nearest;
+  for (int i = 0; i < first_ids; ++i) {
+    double d = 1e9;
+    for (int j = 0; j < first_ids; ++j)
+      if (j != i)
+        d = std::min<double>(d, cv::norm(tracker.store().history(i).front().position_px -
+                                         tracker.store().history(j).front().position_px));
+    nearest.push_back(d);
+  }
+  std::nth_element(nearest.begin(), nearest.begin() + nearest.size() / 2, nearest.end());
+  const double spacing = nearest[nearest.size() / 2];
+  for (size_t i = 0; i < added.size(); ++i)
+    for (size_t j = i + 1; j < added.size(); ++j)
+      EXPECT_GE(cv::norm(added[i] - added[j]), spacing - 1e-3);
+}
+
 // The frame-0 positions of the features, by id.
 std::vector<cv::Point2f> DetectedPositions(const FeatureTracker& tracker) {
   std::vector<cv::Point2f> positions;

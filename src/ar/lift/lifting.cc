@@ -334,6 +334,52 @@ std::vector<FeatureAttachment> FeatureLifter::Attach(const std::vector<Ray>& ray
   return out;
 }
 
+std::vector<FeatureAttachment> FeatureLifter::AttachMore(const std::vector<Ray>& rays,
+                                                         const RowMatX3d* surface_vertices_mm) {
+  const int old_n = static_cast<int>(attached_.size());
+  const int added = static_cast<int>(rays.size());
+  const bool on_surface = options_.target == LiftTarget::kSurface;
+  ARREG_CHECK_INPUT(!on_surface || (surface_vertices_mm != nullptr && have_surface_), "",
+                    "FeatureLifter::AttachMore", "the surface variant needs the current surface");
+  if (on_surface) bvh_.Refit(*surface_vertices_mm);
+  targets_.conservativeResize(old_n + added, 3);
+  plane_targets_.conservativeResize(old_n + added, 3);
+  targets_.bottomRows(added).setZero();
+  plane_targets_.bottomRows(added).setZero();
+  plane_valid_.resize(old_n + added, 0);
+  attached_.resize(old_n + added, 0);
+  status_.resize(old_n + added, LiftStatus::kNotAttached);
+  std::vector<FeatureAttachment> out(added);
+  for (int k = 0; k < added; ++k) {
+    const int i = old_n + k;
+    const std::optional<double> t_plane =
+        IntersectRayPlane(rays[k], plane_, options_.min_ray_distance_mm);
+    if (t_plane) {
+      plane_targets_.row(i) = rays[k].PointAt(*t_plane).transpose();
+      plane_valid_[i] = 1;
+    }
+    FeatureAttachment& a = out[k];
+    if (on_surface) {
+      RayHit hit;
+      if (!bvh_.Intersect(rays[k], &hit, options_.min_ray_distance_mm)) continue;
+      a.point_mm = hit.point_mm;
+      a.face = hit.face;
+      a.barycentric = hit.barycentric;
+      a.ray_distance_mm = hit.t;
+      status_[i] = LiftStatus::kSurfaceHit;
+    } else {
+      if (!t_plane) continue;
+      a.point_mm = rays[k].PointAt(*t_plane);
+      a.ray_distance_mm = *t_plane;
+      status_[i] = LiftStatus::kPlaneHit;
+    }
+    a.attached = true;
+    attached_[i] = 1;
+    targets_.row(i) = a.point_mm.transpose();
+  }
+  return out;
+}
+
 LiftSummary FeatureLifter::Update(const PinholeCamera& camera, const RowMatX2d& pixels,
                                   const std::vector<char>& tracked,
                                   const RowMatX3d* surface_vertices_mm) {

@@ -151,6 +151,13 @@ class FeatureLifter {
                                         const SurfaceMesh* surface,
                                         const std::optional<Plane>& plane);
 
+  // Features that join after frame 0: their rays are cast against the current model surface
+  // (`surface_vertices_mm`, #V x 3, the connectivity of Attach's surface; kSurface) or the
+  // plane, and they are appended as rows after the existing ones, attached where the ray hits.
+  // Their plane targets start on this frame's ray, so eq. 7.1 carries them from here.
+  std::vector<FeatureAttachment> AttachMore(const std::vector<Ray>& rays,
+                                            const RowMatX3d* surface_vertices_mm);
+
   // Next frame. `surface_vertices_mm` (#V x 3, connectivity of Attach's surface) is the current
   // deformed model; needed only for kRayCastWithFallback. `tracked` (#F, may be empty = all)
   // marks features the tracker still has. Updates and returns targets().
