@@ -52,7 +52,9 @@ struct BoxScene {
 
 using BoxMotion = std::function<Eigen::RowVector3d(const Eigen::RowVector3d&, int)>;
 
-BoxScene MakeMovingBoxScene(const std::string& name, int frames, const BoxMotion& motion) {
+// `paint`, if given, draws over each rendered frame (an occluder) before it is encoded.
+BoxScene MakeMovingBoxScene(const std::string& name, int frames, const BoxMotion& motion,
+                            const std::function<void(int, cv::Mat*)>& paint = {}) {
   BoxScene b;
   b.dir = testing::ScratchDir(name);
   TetMesh mesh = MakeBoxTetMesh(Eigen::Vector3d(60, 60, 10), Eigen::Vector3i(6, 6, 1));
@@ -87,7 +89,9 @@ BoxScene MakeMovingBoxScene(const std::string& name, int frames, const BoxMotion
       const float g = 0.2f + 0.7f * Noise(p);
       return Eigen::Vector3f(g, 0.8f * g, 0.7f * g);
     });
-    writer.Write(target.ResolveBgr());
+    cv::Mat image = target.ResolveBgr();
+    if (paint) paint(f, &image);
+    writer.Write(image);
   }
   writer.Close();
 
@@ -217,6 +221,60 @@ TEST(Pipeline, FollowsARigidShift) {
   EXPECT_NEAR(moved.y(), 0.0, 0.3);
   EXPECT_NEAR(moved.z(), 0.0, 0.3);
   EXPECT_LT(probe.last_mean_mm, 0.3);
+}
+
+// Features that join later (tracking.redetect_every_frames): a flat occluder hides a quarter
+// of the box for six frames while it slides; the tracker fills the hole it leaves, the new
+// features are attached after their probation, embedded where the model is then (not where it
+// was at rest): the box's rigid shift is followed and their springs stay as short as the
+// others'.
+TEST(Pipeline, FeaturesDetectedLaterAreEmbeddedWhereTheModelIs) {
+  const BoxScene b = MakeMovingBoxScene(
+      "pipeline_late_features", 24,
+      [](const Eigen::RowVector3d& p, int f) {
+        return Eigen::RowVector3d(p + Eigen::RowVector3d(0.4 * std::min(f, 15), 0, 0));
+      },
+      [](int f, cv::Mat* image) {
+        if (f >= 3 && f < 9) (*image)(cv::Rect(160, 128, 50, 50)).setTo(cv::Scalar(60, 60, 60));
+      });
+  Scene scene = b.scene;
+  scene.tracking = {{"redetect_every_frames", 1}, {"attach_after_frames", 2}};
+  PipelineOptions o = ReadPipelineOptions(scene);
+  o.render.enabled = false;
+  struct LateProbe : FrameObserver {
+    void OnFrame(const FrameState& f) override {
+      if (f.frame == 0) first = static_cast<int>(f.features->size());
+      added += f.stats.added;
+      if (!f.is_last) return;
+      centroid = f.state->positions().colwise().mean().transpose();
+      rest_centroid = f.state->rest_positions().colwise().mean().transpose();
+      for (size_t r = 0; r < f.features->size(); ++r) {
+        const FeatureView& v = (*f.features)[r];
+        if (!v.alive) continue;
+        double& worst = static_cast<int>(r) < first ? worst_first_mm : worst_late_mm;
+        worst = std::max(worst, v.spring_length_mm);
+        late_alive += static_cast<int>(r) >= first;
+      }
+    }
+    int first = 0, added = 0, late_alive = 0;
+    double worst_first_mm = 0, worst_late_mm = 0;
+    Eigen::Vector3d centroid, rest_centroid;
+  } probe;
+  RegistrationPipeline pipe(scene, o);
+  pipe.AddObserver(&probe);
+  pipe.Run();
+  EXPECT_GT(probe.added, 3);
+  EXPECT_GT(probe.late_alive, 3);
+  const Eigen::Vector3d moved = probe.centroid - probe.rest_centroid;
+  EXPECT_NEAR(moved.x(), 6.0, 0.3);
+  EXPECT_NEAR(moved.y(), 0.0, 0.3);
+  // An embedding off by the shift at attachment (4-6 mm) or by the motion since detection
+  // would show here.
+  EXPECT_LT(probe.worst_late_mm, std::max(0.5, 2 * probe.worst_first_mm));
+  std::printf(
+      "late features: %d added, %d alive at the end; worst spring %.3f mm (frame-0 ones "
+      "%.3f mm)\n",
+      probe.added, probe.late_alive, probe.worst_late_mm, probe.worst_first_mm);
 }
 
 // Records, per frame, the shown configuration and the dynamic model.
@@ -503,6 +561,28 @@ TEST(PipelineOptions, TrackingAndDetectorKeysRoundTrip) {
   EXPECT_EQ(j["tracking"]["drift_correction"], true);
   EXPECT_EQ(j["tracking"]["drift_window_px"], 25);
   EXPECT_EQ(j["cutting"]["neighbours_per_feature"], 12);
+  EXPECT_EQ(j["tracking"]["redetect_every_frames"], 0);  // off by default
+  scene.tracking = {{"redetect_every_frames", 5},
+                    {"redetect_hole_factor", 1.5},
+                    {"attach_after_frames", 3},
+                    {"attach_max_misfit_factor", 4}};
+  const PipelineOptions late = ReadPipelineOptions(scene);
+  EXPECT_EQ(late.tracking.redetect_every_frames, 5);
+  EXPECT_DOUBLE_EQ(late.tracking.redetect_hole_factor, 1.5);
+  EXPECT_EQ(late.attach_after_frames, 3);
+  EXPECT_DOUBLE_EQ(late.attach_max_misfit_factor, 4);
+  EXPECT_EQ(PipelineOptionsToJson(late)["attach_after_frames"], 3);
+  for (const nlohmann::json& bad :
+       {nlohmann::json{{"attach_after_frames", -1}}, nlohmann::json{{"redetect_hole_factor", -1}},
+        nlohmann::json{{"attach_max_misfit_factor", 0}}}) {
+    scene.tracking = bad;
+    try {
+      ReadPipelineOptions(scene);
+      FAIL() << bad.dump() << " was accepted";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(bad.begin().key()), std::string::npos) << e.what();
+    }
+  }
 
   scene.tracking = {{"appearance_min_correlation", 1.5}};
   try {

@@ -75,6 +75,7 @@ struct FrameStats {
   int features_alive = 0;  // springs acting this frame
   int outliers = 0;        // features dropped by the spatio-temporal filter this frame
   int lost = 0;            // features lost this frame (any reason)
+  int added = 0;           // features re-detected and attached this frame (fill-in of holes)
   double spring_length_mean_mm = 0, spring_length_max_mm = 0;  // over alive springs
   int inverted_elements = 0;
   std::string mechanics_status;   // StepStatusName of the integrator

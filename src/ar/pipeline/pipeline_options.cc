@@ -84,6 +84,11 @@ void PipelineOptions::Check() const {
                     "must be -1 (all) or >= 1, got ", max_frames);
   ARREG_CHECK_INPUT(roi_dilation_px >= -1, "", "roi_dilation_px", "must be >= -1, got ",
                     roi_dilation_px);
+  ARREG_CHECK_INPUT(attach_after_frames >= 0, "", "tracking.attach_after_frames",
+                    "must be >= 0, got ", attach_after_frames);
+  ARREG_CHECK_INPUT(attach_max_misfit_factor > 0 && std::isfinite(attach_max_misfit_factor), "",
+                    "tracking.attach_max_misfit_factor", "must be > 0, got ",
+                    attach_max_misfit_factor);
 }
 
 SpringStiffness ResolveSpringStiffness(const MechanicsStageOptions& mechanics,
@@ -128,7 +133,7 @@ double AreaFacing(const SurfaceMesh& surface, const Eigen::Vector3d& eye_world) 
 
 namespace {
 
-void ReadTracking(const Scene& scene, FeatureTrackerOptions* o) {
+void ReadTracking(const Scene& scene, FeatureTrackerOptions* o, PipelineOptions* p) {
   JsonObjectReader r(scene.tracking, scene.path, "tracking");
   r.Optional("max_features", &o->max_features);
   r.Optional("hessian_threshold", &o->surf.hessian_threshold);
@@ -137,6 +142,9 @@ void ReadTracking(const Scene& scene, FeatureTrackerOptions* o) {
   r.Optional("min_distance_px", &o->min_distance_px);
   r.Optional("border_px", &o->border_px);
   r.Optional("redetect_every_frames", &o->redetect_every_frames);
+  r.Optional("redetect_hole_factor", &o->redetect_hole_factor);
+  r.Optional("attach_after_frames", &p->attach_after_frames);
+  r.Optional("attach_max_misfit_factor", &p->attach_max_misfit_factor);
   r.Optional("window_px", &o->lk.window_px);
   r.Optional("pyramid_levels", &o->lk.pyramid_levels);
   r.Optional("forward_backward_max_px", &o->lk.forward_backward_max_px);
@@ -281,7 +289,7 @@ PipelineOptions ReadPipelineOptions(const Scene& scene) {
   o.tracking.min_features = 200;
   // Video frames are BGR: features on instruments are dropped (docs/tracking.md "Instruments").
   o.tracking.instruments.enabled = true;
-  ReadTracking(scene, &o.tracking);
+  ReadTracking(scene, &o.tracking, &o);
   ReadLifting(scene, &o.lifting);
   ReadMechanics(scene, &o.mechanics);
   ReadCutting(scene, &o.cutting);
@@ -306,6 +314,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                    {"min_distance_px", o.tracking.min_distance_px},
                    {"border_px", o.tracking.border_px},
                    {"redetect_every_frames", o.tracking.redetect_every_frames},
+                   {"redetect_hole_factor", o.tracking.redetect_hole_factor},
                    {"window_px", o.tracking.lk.window_px},
                    {"pyramid_levels", o.tracking.lk.pyramid_levels},
                    {"forward_backward_max_px", o.tracking.lk.forward_backward_max_px},
@@ -405,6 +414,8 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                  {"png_frames", o.output.png_frames}, {"save_every", o.output.save_every}};
   j["max_frames"] = o.max_frames;
   j["roi_dilation_px"] = o.roi_dilation_px;
+  j["attach_after_frames"] = o.attach_after_frames;
+  j["attach_max_misfit_factor"] = o.attach_max_misfit_factor;
   return j;
 }
 

@@ -196,6 +196,20 @@ struct PipelineOptions {
   // Dilation [px] of the projected model silhouette used as the tracker's ROI at every frame;
   // -1 (default) uses the silhouette only at frame 0 (detection) and the whole image afterwards.
   int roi_dilation_px = -1;
+  // A feature re-detected after frame 0 (tracking.redetect_every_frames) is attached once it
+  // has been tracked, without a loss, for this many frames since its detection. Points on the
+  // silhouette's edge or a specular rim slide and are dropped by the forward-backward check or
+  // the outlier filter within a frame or two; a spring on them would pull the model along the
+  // slide. 0 = attach at detection. Default 5.
+  int attach_after_frames = 5;
+  // ... and only where the model agrees with the image there: the mean spring length of the
+  // attached features within 3 frame-0 feature spacings of its attach point is at most this
+  // factor times the median spring length of all of them. Where the model lags the tissue
+  // (a cut the model has not made yet, tissue its springs cannot reach), the rest point a new
+  // feature would be given through the model is wrong, and a spring from there holds the model
+  // in place: in the gap of an opening cut the new point is background. A feature with no such
+  // neighbour (its whole patch lost) is attached. Default 2.
+  double attach_max_misfit_factor = 2.0;
   // Throws arreg::Error naming the field.
   void Check() const;
 };

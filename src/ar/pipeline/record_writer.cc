@@ -30,6 +30,7 @@ nlohmann::json FrameRecord(const FrameState& f) {
   nlohmann::json j;
   j["frame"] = f.frame;
   j["features_alive"] = f.stats.features_alive;
+  j["features_added"] = f.stats.added;
   j["outliers"] = f.stats.outliers;
   j["lost"] = f.stats.lost;
   const bool any = f.stats.features_alive > 0;

@@ -154,6 +154,51 @@ struct RegistrationPipeline::Impl {
   VideoReader reader;
 };
 
+namespace {
+
+// Whether a feature with this history is due to be attached in `frame`: detected exactly
+// `after_frames` frames before and tracked in every frame since (re-identified ones too).
+bool ProbationPassed(const std::vector<TrackObservation>& history, int frame, int after_frames) {
+  if (history.empty() || history.front().frame != frame - after_frames) return false;
+  for (const TrackObservation& obs : history)
+    if (obs.status != TrackStatus::kTracked) return false;
+  return true;
+}
+
+// Per point (#P x 3, on the model): whether the model agrees with the image around it
+// (PipelineOptions::attach_max_misfit_factor): the mean spring length |anchor - target| of the
+// features with an active spring whose anchors lie within `radius_mm` is at most `factor` times
+// the median over all of them. True where no such feature is near.
+std::vector<char> ModelAgrees(const RowMatX3d& points_mm, const RowMatX3d& anchors_mm,
+                              const RowMatX3d& targets_mm, const std::vector<FeatureView>& features,
+                              double radius_mm, double factor) {
+  std::vector<int> rows;
+  std::vector<double> length;
+  for (int r = 0; r < static_cast<int>(features.size()); ++r)
+    if (features[r].spring_active) {
+      rows.push_back(r);
+      length.push_back((anchors_mm.row(r) - targets_mm.row(r)).norm());
+    }
+  std::vector<char> agrees(points_mm.rows(), 1);
+  if (rows.empty()) return agrees;
+  std::vector<double> sorted = length;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  const double limit = factor * sorted[sorted.size() / 2];
+  for (int k = 0; k < points_mm.rows(); ++k) {
+    double sum = 0.0;
+    int count = 0;
+    for (size_t i = 0; i < rows.size(); ++i)
+      if ((anchors_mm.row(rows[i]) - points_mm.row(k)).squaredNorm() < radius_mm * radius_mm) {
+        sum += length[i];
+        ++count;
+      }
+    agrees[k] = count == 0 || sum / count <= limit;
+  }
+  return agrees;
+}
+
+}  // namespace
+
 RegistrationPipeline::RegistrationPipeline(const Scene& scene, const PipelineOptions& options)
     : impl_(std::make_unique<Impl>()) {
   impl_->scene = scene;
@@ -273,7 +318,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     features.push_back(v);
   }
   ms.track = since(t0);
-  const int nf = static_cast<int>(features.size());
+  int nf = static_cast<int>(features.size());
 
   t0 = now();
   lift::FeatureLifter lifter(o.lifting);
@@ -288,6 +333,12 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       mechanics::EmbeddedPoints::Embed(attach_points, state.rest_positions(), state.tetrahedra());
   int attached = 0;
   for (const lift::FeatureAttachment& a : attachments) attached += a.attached ? 1 : 0;
+  const double feature_spacing_mm = [&] {
+    RowMatX3d p(attached, 3);
+    for (int r = 0, k = 0; r < nf; ++r)
+      if (attachments[r].attached) p.row(k++) = attach_points.row(r);
+    return cutting::MedianKthNeighbourDistance(p, 1);
+  }();
   const SpringStiffness stiffness = ResolveSpringStiffness(
       o.mechanics, scene.material.youngs_modulus_pa, TetVolumes(impl_->model.mesh).sum(),
       AreaFacing(surface, camera.CenterInWorld()), attached);
@@ -391,9 +442,16 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
                                                                     2 * o.roi_dilation_px + 1)));
       }
       tracker.Track(bgr, frame_roi);
+      // Re-detected features through their probation (attach_after_frames): attached below.
+      std::vector<const FeatureState*> detected;
       for (const FeatureState& f : tracker.current()) {
         const auto it = row_of_id.find(f.id);
-        if (it == row_of_id.end()) continue;  // re-detected after frame 0: not attached
+        if (it == row_of_id.end()) {
+          if (f.status == TrackStatus::kTracked &&
+              ProbationPassed(tracker.store().history(f.id), frame, o.attach_after_frames))
+            detected.push_back(&f);
+          continue;
+        }
         FeatureView& v = features[it->second];
         v.pixel = Eigen::Vector2d(f.position_px.x, f.position_px.y);
         v.track_status = f.status;
@@ -406,6 +464,66 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       for (int r = 0; r < nf; ++r) tracked[r] = features[r].track_status == TrackStatus::kTracked;
       ms.track = since(t0);
 
+      // Features re-detected in holes (tracking.redetect_every_frames) join like frame 0's:
+      // cast against the model as it stands, embedded where the ray meets it, their rest
+      // points (the configuration the detector compares with) carried back by that embedding,
+      // and a zero-length spring each.
+      if (!detected.empty()) {
+        t0 = now();
+        const int added = static_cast<int>(detected.size());
+        RowMatX2d new_pixels(added, 2);
+        for (int k = 0; k < added; ++k)
+          new_pixels.row(k) << detected[k]->position_px.x, detected[k]->position_px.y;
+        frame0_surface_vertices = state.positions().topRows(impl_->model.mesh.vertices.rows());
+        const std::vector<lift::FeatureAttachment> more = lifter.AttachMore(
+            lift::RaysThroughPixels(camera, new_pixels), &frame0_surface_vertices);
+        RowMatX3d points(added, 3);
+        for (int k = 0; k < added; ++k) points.row(k) = more[k].point_mm.transpose();
+        const std::vector<char> trusted =
+            ModelAgrees(points, anchors, targets, features, 3.0 * feature_spacing_mm,
+                        o.attach_max_misfit_factor);
+        const mechanics::EmbeddedPoints current =
+            mechanics::EmbeddedPoints::Embed(points, state.positions(), state.tetrahedra());
+        const RowMatX3d rest = current.Positions(state.rest_positions(), state.tetrahedra());
+        pixels.conservativeResize(nf + added, 2);
+        attach_points.conservativeResize(nf + added, 3);
+        anchors.conservativeResize(nf + added, 3);
+        targets.conservativeResize(nf + added, 3);
+        tracked.resize(nf + added, 1);
+        alive_rows.resize(nf + added, 0);
+        feature_embedding.Resize(nf + added);
+        std::vector<int> joining;
+        for (int k = 0; k < added; ++k) {
+          const int r = nf + k;
+          FeatureView v;
+          v.id = detected[k]->id;
+          v.pixel = new_pixels.row(k).transpose();
+          v.track_status = detected[k]->status;
+          v.lift_status = lifter.status()[r];
+          pixels.row(r) = new_pixels.row(k);
+          attach_points.row(r) = rest.row(k);
+          anchors.row(r) = points.row(k);
+          targets.row(r) = points.row(k);
+          feature_embedding[r] = current[k];
+          row_of_id[v.id] = r;
+          if (more[k].attached && trusted[k]) {
+            v.spring = springs.Add(current[k], more[k].point_mm, stiffness.n_per_m);
+            v.alive = v.spring_active = true;
+            joining.push_back(r);
+            ++stats.added;
+          }
+          features.push_back(v);
+        }
+        nf += added;
+        if (detector && !joining.empty()) {
+          RowMatX3d joining_rest(joining.size(), 3);
+          for (size_t k = 0; k < joining.size(); ++k)
+            joining_rest.row(k) = attach_points.row(joining[k]);
+          detector->AddFeatures(joining_rest, joining);
+        }
+        ms.lift += since(t0);
+      }
+
       // Lifting.
       t0 = now();
       const RowMatX3d* cast_surface = nullptr;
@@ -416,7 +534,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       }
       lifter.Update(camera, pixels, tracked, cast_surface);
       targets = lifter.targets_mm();
-      ms.lift = since(t0);
+      ms.lift += since(t0);
 
       // Mechanics: springs follow the targets, one implicit Euler step.
       t0 = now();
