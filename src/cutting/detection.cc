@@ -54,65 +54,64 @@ double MedianKthNeighbourDistance(const RowMatX3d& points_mm, int k) {
 
 void CutDetectorOptions::Check() const {
   auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
-  ARREG_CHECK_INPUT(positive(neighbour_radius_mm), "", "cut_detector.neighbour_radius_mm",
+  ARREG_CHECK_INPUT(positive(neighbour_radius_mm), "", "cutting.neighbour_radius_mm",
                     "must be > 0, got ", neighbour_radius_mm);
-  ARREG_CHECK_INPUT(positive(outlier_factor), "", "cut_detector.outlier_factor",
-                    "must be > 0, got ", outlier_factor);
-  ARREG_CHECK_INPUT(min_outliers >= 1, "", "cut_detector.min_outliers", "must be >= 1, got ",
+  ARREG_CHECK_INPUT(positive(outlier_factor), "", "cutting.outlier_factor", "must be > 0, got ",
+                    outlier_factor);
+  ARREG_CHECK_INPUT(min_outliers >= 1, "", "cutting.min_outliers", "must be >= 1, got ",
                     min_outliers);
   ARREG_CHECK_INPUT(std::isfinite(outlier_weight_cap) && outlier_weight_cap >= 1.0, "",
-                    "cut_detector.outlier_weight_cap", "must be >= 1, got ", outlier_weight_cap);
-  ARREG_CHECK_INPUT(neighbours_per_feature >= 0, "", "cut_detector.neighbours_per_feature",
+                    "cutting.outlier_weight_cap", "must be >= 1, got ", outlier_weight_cap);
+  ARREG_CHECK_INPUT(neighbours_per_feature >= 0, "", "cutting.neighbours_per_feature",
                     "must be >= 0 (0: use neighbour_radius_mm), got ", neighbours_per_feature);
-  ARREG_CHECK_INPUT(positive(cut_point_radius_mm), "", "cut_detector.cut_point_radius_mm",
+  ARREG_CHECK_INPUT(positive(cut_point_radius_mm), "", "cutting.cut_point_radius_mm",
                     "must be > 0, got ", cut_point_radius_mm);
   ARREG_CHECK_INPUT(std::isfinite(min_outlier_measure_mm) && min_outlier_measure_mm >= 0.0, "",
-                    "cut_detector.min_outlier_measure_mm", "must be >= 0, got ",
-                    min_outlier_measure_mm);
+                    "cutting.min_outlier_measure_mm", "must be >= 0, got ", min_outlier_measure_mm);
   ARREG_CHECK_INPUT(std::isfinite(boundary_extension_mm) && boundary_extension_mm >= 0.0, "",
-                    "cut_detector.boundary_extension_mm", "must be >= 0, got ",
+                    "CutDetectorOptions.boundary_extension_mm", "must be >= 0, got ",
                     boundary_extension_mm);
   const auto check_cone = [](double degrees, const char* field) {
     ARREG_CHECK_INPUT(degrees > 0.0 && degrees < 90.0, "", field, "must be in (0, 90), got ",
                       degrees);
   };
-  check_cone(boundary_cone_half_angle_deg, "cut_detector.boundary_cone_half_angle_deg");
-  ARREG_CHECK_INPUT(closing_window_frames >= 0, "", "cut_detector.closing_window_frames",
+  check_cone(boundary_cone_half_angle_deg, "CutDetectorOptions.boundary_cone_half_angle_deg");
+  ARREG_CHECK_INPUT(closing_window_frames >= 0, "", "cutting.closing_window_frames",
                     "must be >= 0, got ", closing_window_frames);
   ARREG_CHECK_INPUT(std::isfinite(max_closing_fraction) && max_closing_fraction >= 0.0, "",
-                    "cut_detector.max_closing_fraction", "must be >= 0, got ",
-                    max_closing_fraction);
+                    "cutting.max_closing_fraction", "must be >= 0, got ", max_closing_fraction);
   ARREG_CHECK_INPUT(std::isfinite(min_opening_balance) && min_opening_balance >= 0.0 &&
                         min_opening_balance <= 1.0,
-                    "", "cut_detector.min_opening_balance", "must be in [0, 1], got ",
+                    "", "cutting.min_opening_balance", "must be in [0, 1], got ",
                     min_opening_balance);
   ARREG_CHECK_INPUT(std::isfinite(min_opening_balance_bridges) &&
                         min_opening_balance_bridges >= 0.0 && min_opening_balance_bridges <= 1.0,
-                    "", "cut_detector.min_opening_balance_bridges", "must be in [0, 1], got ",
+                    "", "cutting.min_opening_balance_bridges", "must be in [0, 1], got ",
                     min_opening_balance_bridges);
   ARREG_CHECK_INPUT(std::isfinite(min_lone_growth_balance) && min_lone_growth_balance >= -1.0 &&
                         min_lone_growth_balance <= 1.0,
-                    "", "cut_detector.min_lone_growth_balance", "must be in [-1, 1], got ",
+                    "", "cutting.min_lone_growth_balance", "must be in [-1, 1], got ",
                     min_lone_growth_balance);
   ARREG_CHECK_INPUT(std::isfinite(bridge_radius_factor) && bridge_radius_factor >= 0.0, "",
-                    "cut_detector.bridge_radius_factor", "must be >= 0 (0: no bridges), got ",
+                    "cutting.bridge_radius_factor", "must be >= 0 (0: no bridges), got ",
                     bridge_radius_factor);
-  check_cone(bridge_cone_half_angle_deg, "cut_detector.bridge_cone_half_angle_deg");
-  ARREG_CHECK_INPUT(max_cut_points_per_frame >= 1, "", "cut_detector.max_cut_points_per_frame",
-                    "must be >= 1, got ", max_cut_points_per_frame);
+  check_cone(bridge_cone_half_angle_deg, "cutting.bridge_cone_half_angle_deg");
+  ARREG_CHECK_INPUT(max_cut_points_per_frame >= 1, "",
+                    "CutDetectorOptions.max_cut_points_per_frame", "must be >= 1, got ",
+                    max_cut_points_per_frame);
   ARREG_CHECK_INPUT(std::isfinite(probe_length_factor) && probe_length_factor >= 0.0, "",
-                    "cut_detector.probe_length_factor", "must be >= 0 (0: no probe), got ",
+                    "cutting.probe_length_factor", "must be >= 0 (0: no probe), got ",
                     probe_length_factor);
-  ARREG_CHECK_INPUT(positive(probe_pair_length_factor), "", "cut_detector.probe_pair_length_factor",
+  ARREG_CHECK_INPUT(positive(probe_pair_length_factor), "", "cutting.probe_pair_length_factor",
                     "must be > 0, got ", probe_pair_length_factor);
-  ARREG_CHECK_INPUT(positive(probe_outlier_factor), "", "cut_detector.probe_outlier_factor",
+  ARREG_CHECK_INPUT(positive(probe_outlier_factor), "", "cutting.probe_outlier_factor",
                     "must be > 0, got ", probe_outlier_factor);
   separation.Check();
-  ARREG_CHECK_INPUT(positive(separation_radius_factor), "", "cut_detector.separation_radius_factor",
+  ARREG_CHECK_INPUT(positive(separation_radius_factor), "", "cutting.separation_radius_factor",
                     "must be > 0, got ", separation_radius_factor);
-  ARREG_CHECK_INPUT(growth_cone_deg > 0.0 && growth_cone_deg <= 90.0, "",
-                    "cut_detector.growth_cone_deg", "must be in (0, 90], got ", growth_cone_deg);
-  ARREG_CHECK_INPUT(positive(probe_max_lead_factor), "", "cut_detector.probe_max_lead_factor",
+  ARREG_CHECK_INPUT(growth_cone_deg > 0.0 && growth_cone_deg <= 90.0, "", "cutting.growth_cone_deg",
+                    "must be in (0, 90], got ", growth_cone_deg);
+  ARREG_CHECK_INPUT(positive(probe_max_lead_factor), "", "cutting.probe_max_lead_factor",
                     "must be > 0, got ", probe_max_lead_factor);
 }
 
