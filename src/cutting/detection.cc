@@ -378,6 +378,7 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   result->probe_pairs = 0;
   result->probe_outliers = 0;
   result->separation_tests.clear();
+  undirected_tests_.clear();
   result->not_separated = 0;
   if (any_died) {
     // (alive feature, dead neighbour) of the pairs that die, for their bridges.
@@ -1202,6 +1203,9 @@ std::vector<int> CutDetector::AliveWithin(const Eigen::Vector3d& initial_mm,
 SeparationTestResult CutDetector::SeparationAt(const Eigen::Vector3d& initial_mm,
                                                const std::optional<Eigen::Vector3d>& along,
                                                DetectionResult* result) const {
+  if (!along)
+    for (const auto& [point, earlier] : undirected_tests_)
+      if (point == initial_mm) return earlier;
   const std::vector<int> near =
       AliveWithin(initial_mm, options_.separation_radius_factor * options_.neighbour_radius_mm);
   const int n = static_cast<int>(near.size());
@@ -1214,6 +1218,7 @@ SeparationTestResult CutDetector::SeparationAt(const Eigen::Vector3d& initial_mm
   SeparationTestResult test = TestSeparation(rest, current, displacement, initial_mm,
                                              options_.separation, along, options_.growth_cone_deg);
   result->separation_tests.emplace_back(initial_mm, test);
+  if (!along) undirected_tests_.emplace_back(initial_mm, test);
   return test;
 }
 

@@ -490,7 +490,9 @@ class CutDetector {
   bool ProbeGrowth(bool front, DetectionResult* result, CutPoint* point);
   // The separation test at a frame-0 point over the displacements p^1 - p^0 of the alive
   // features within separation_radius_factor * r_F of it; `along` restricts the line's direction.
-  // Recorded in result->separation_tests.
+  // Recorded in result->separation_tests. A test without `along` at a point already tested so
+  // in this frame (the bridge pass meets the clusters the first pass refused) is answered from
+  // the frame's earlier result, neither recomputed nor recorded twice.
   SeparationTestResult SeparationAt(const Eigen::Vector3d& initial_mm,
                                     const std::optional<Eigen::Vector3d>& along,
                                     DetectionResult* result) const;
@@ -595,6 +597,8 @@ class CutDetector {
   std::vector<int> cluster_;
   std::vector<int> cluster_of_cf_;  // cluster_ without its bridges
   std::vector<int> cluster_count_;  // per feature: pairs of cluster_ it is in (0 between uses)
+  // This frame's separation tests without a direction, by point (SeparationAt).
+  mutable std::vector<std::pair<Eigen::Vector3d, SeparationTestResult>> undirected_tests_;
 };
 
 }  // namespace arreg::cutting

@@ -129,6 +129,8 @@ struct SeamRun {
   int died = 0;              // features lost (lip_loss_mm)
   int refused_segments = 0;  // points refused by the segment check over the frames
   int one_sided = 0;         // clusters rejected as one-sided over the frames
+  int repeated_tests = 0;    // separation tests of a frame at a point tested before in it
+  int separation_tests = 0;  // all of them
 };
 
 SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOptions& options,
@@ -194,6 +196,11 @@ SeamRun RunSeam(const FeatureGrid& g, const SeamScenario& s, const CutDetectorOp
       frame.model_mm.row(k) = model.row(rows[k]);
     }
     detector.Update(frame, &result);
+    for (size_t a = 0; a < result.separation_tests.size(); ++a)
+      for (size_t b = a + 1; b < result.separation_tests.size(); ++b)
+        run.repeated_tests +=
+            result.separation_tests[a].first == result.separation_tests[b].first ? 1 : 0;
+    run.separation_tests += static_cast<int>(result.separation_tests.size());
     run.bridged += result.pairs_bridged;
     run.refused_segments += result.refused_segments;
     run.one_sided += result.one_sided_clusters;
@@ -606,6 +613,8 @@ TEST(CutDetector, SeparationTestFollowsTheSeam) {
     for (const Eigen::Vector3d& p : run.extended_initial)
       reach = std::max(reach, scenario.Coordinates(p).x());
     EXPECT_GT(reach, scenario.tip_end_mm - 3 * options.cut_point_radius_mm);
+    // A point is tested once per frame, also when the bridge pass meets its cluster again.
+    EXPECT_EQ(run.repeated_tests, 0);
   }
 }
 
