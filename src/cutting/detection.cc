@@ -176,22 +176,11 @@ void CutDetector::Initialize(const RowMatX3d& initial_positions_mm, const std::v
     key[i] = CellKey(initial_mm_.row(i).transpose());
     grid_.emplace(CellHash(key[i](0), key[i](1), key[i](2)), i);
   }
-  for (int i = 0; i < n; ++i) {
-    for (long long dx = -1; dx <= 1; ++dx)
-      for (long long dy = -1; dy <= 1; ++dy)
-        for (long long dz = -1; dz <= 1; ++dz) {
-          const Eigen::Matrix<long long, 3, 1> c =
-              key[i] + Eigen::Matrix<long long, 3, 1>(dx, dy, dz);
-          auto range = grid_.equal_range(CellHash(c(0), c(1), c(2)));
-          for (auto it = range.first; it != range.second; ++it) {
-            const int j = it->second;
-            // The hash may collide: compare the real cell keys.
-            if (j <= i || key[j] != c) continue;
-            if ((initial_mm_.row(i) - initial_mm_.row(j)).squaredNorm() < r2)
-              pairs_.push_back({i, j});
-          }
-        }
-  }
+  for (int i = 0; i < n; ++i)
+    ForEachInCellsAround(key[i], 1, [&](int j) {
+      if (j > i && (initial_mm_.row(i) - initial_mm_.row(j)).squaredNorm() < r2)
+        pairs_.push_back({i, j});
+    });
   ever_paired_.reserve(2 * pairs_.size());
   for (const FeaturePair& p : pairs_) ever_paired_.insert(PairKey(p.first, p.second));
   std::sort(pairs_.begin(), pairs_.end(), PairLess);
@@ -241,34 +230,27 @@ void CutDetector::AddFeatures(const RowMatX3d& rest_positions_mm, const std::vec
     grid_.emplace(CellHash(cell_of_[i](0), cell_of_[i](1), cell_of_[i](2)), i);
   }
   const double r2 = options_.neighbour_radius_mm * options_.neighbour_radius_mm;
-  const double r_pc2 = options_.cut_point_radius_mm * options_.cut_point_radius_mm;
   const size_t kept = pairs_.size();
   for (int i = old_n; i < n; ++i) {
     const Eigen::Vector3d pi = initial_mm_.row(i).transpose();
-    for (long long dx = -1; dx <= 1; ++dx)
-      for (long long dy = -1; dy <= 1; ++dy)
-        for (long long dz = -1; dz <= 1; ++dz) {
-          const Eigen::Matrix<long long, 3, 1> c =
-              cell_of_[i] + Eigen::Matrix<long long, 3, 1>(dx, dy, dz);
-          auto range = grid_.equal_range(CellHash(c(0), c(1), c(2)));
-          for (auto it = range.first; it != range.second; ++it) {
-            const int j = it->second;
-            // New-new pairs once (j < i); the hash may collide: compare the real cell keys.
-            if (j == i || (j >= old_n && j > i) || !alive_[j] || cell_of_[j] != c) continue;
-            const Eigen::Vector3d pj = initial_mm_.row(j).transpose();
-            if ((pi - pj).squaredNorm() >= r2) continue;
-            bool crosses_cut = false;
-            for (const CutPoint& q : polyline_)
-              crosses_cut =
-                  crosses_cut || SquaredDistanceToSegment(pi, pj, q.initial_position_mm) < r_pc2;
-            if (crosses_cut) continue;
-            pairs_.push_back({std::min(i, j), std::max(i, j)});
-            ever_paired_.insert(PairKey(i, j));
-          }
-        }
+    ForEachInCellsAround(cell_of_[i], 1, [&](int j) {
+      // New-new pairs once (j < i).
+      if (j == i || (j >= old_n && j > i) || !alive_[j]) return;
+      const Eigen::Vector3d pj = initial_mm_.row(j).transpose();
+      if ((pi - pj).squaredNorm() >= r2 || CrossesCut(pi, pj)) return;
+      pairs_.push_back({std::min(i, j), std::max(i, j)});
+      ever_paired_.insert(PairKey(i, j));
+    });
   }
   std::sort(pairs_.begin() + kept, pairs_.end(), PairLess);
   std::inplace_merge(pairs_.begin(), pairs_.begin() + kept, pairs_.end(), PairLess);
+}
+
+bool CutDetector::CrossesCut(const Eigen::Vector3d& a, const Eigen::Vector3d& b) const {
+  const double r_pc2 = options_.cut_point_radius_mm * options_.cut_point_radius_mm;
+  for (const CutPoint& q : polyline_)
+    if (SquaredDistanceToSegment(a, b, q.initial_position_mm) < r_pc2) return true;
+  return false;
 }
 
 Eigen::Matrix<long long, 3, 1> CutDetector::CellKey(const Eigen::Vector3d& p0) const {
@@ -288,19 +270,10 @@ const std::vector<int>& CutDetector::BridgeCandidates(int l) {
   const long long reach = static_cast<long long>(std::ceil(options_.bridge_radius_factor));
   const Eigen::Matrix<long long, 3, 1> key = CellKey(pl.transpose());
   std::vector<std::pair<double, int>> found;
-  for (long long dx = -reach; dx <= reach; ++dx)
-    for (long long dy = -reach; dy <= reach; ++dy)
-      for (long long dz = -reach; dz <= reach; ++dz) {
-        const Eigen::Matrix<long long, 3, 1> c = key + Eigen::Matrix<long long, 3, 1>(dx, dy, dz);
-        auto range = grid_.equal_range(CellHash(c(0), c(1), c(2)));
-        for (auto it = range.first; it != range.second; ++it) {
-          const int m = it->second;
-          // The hash may collide: only the features of this very cell.
-          if (m == l || cell_of_[m] != c) continue;
-          const double d2 = (initial_mm_.row(m) - pl).squaredNorm();
-          if (d2 > 0.0 && d2 < radius * radius) found.emplace_back(d2, m);
-        }
-      }
+  ForEachInCellsAround(key, reach, [&](int m) {
+    const double d2 = (initial_mm_.row(m) - pl).squaredNorm();
+    if (m != l && d2 > 0.0 && d2 < radius * radius) found.emplace_back(d2, m);
+  });
   // Nearest first, ties to the lower index: the result does not depend on the grid's order.
   std::sort(found.begin(), found.end());
   list.reserve(found.size());
@@ -314,17 +287,12 @@ int CutDetector::BridgeFeature(int l, int dead) {
   const double towards_norm = towards.norm();
   if (options_.bridge_radius_factor <= 0.0 || towards_norm == 0.0) return -1;
   const double cos_cone = std::cos(options_.bridge_cone_half_angle_deg * kPi / 180.0);
-  const double r_pc2 = options_.cut_point_radius_mm * options_.cut_point_radius_mm;
   for (int m : BridgeCandidates(l)) {
     if (!alive_[m]) continue;
     const Eigen::Vector3d v = initial_mm_.row(m).transpose() - pl;
     if (v.dot(towards) < cos_cone * v.norm() * towards_norm) continue;
     if (ever_paired_.count(PairKey(l, m))) continue;
-    bool crosses_cut = false;
-    for (const CutPoint& q : polyline_)
-      crosses_cut = crosses_cut || SquaredDistanceToSegment(pl, initial_mm_.row(m).transpose(),
-                                                            q.initial_position_mm) < r_pc2;
-    if (!crosses_cut) return m;
+    if (!CrossesCut(pl, initial_mm_.row(m).transpose())) return m;
   }
   return -1;
 }

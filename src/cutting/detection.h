@@ -441,8 +441,24 @@ class CutDetector {
   int BridgeFeature(int l, int dead);
   // Features within the bridge radius of l (frame 0), nearest first; computed at first use.
   const std::vector<int>& BridgeCandidates(int l);
+  // Whether the frame-0 segment [a, b] passes within r_pc of a cut point.
+  bool CrossesCut(const Eigen::Vector3d& a, const Eigen::Vector3d& b) const;
   // Grid cell key of a frame-0 position (cell size r_F) and its hash.
   Eigen::Matrix<long long, 3, 1> CellKey(const Eigen::Vector3d& p0) const;
+  // Calls visit(j) for every feature j in the cells within `reach` cells of `key` (per axis).
+  template <typename Visit>
+  void ForEachInCellsAround(const Eigen::Matrix<long long, 3, 1>& key, long long reach,
+                            Visit&& visit) const {
+    for (long long dx = -reach; dx <= reach; ++dx)
+      for (long long dy = -reach; dy <= reach; ++dy)
+        for (long long dz = -reach; dz <= reach; ++dz) {
+          const Eigen::Matrix<long long, 3, 1> c = key + Eigen::Matrix<long long, 3, 1>(dx, dy, dz);
+          auto range = grid_.equal_range(CellHash(c(0), c(1), c(2)));
+          for (auto it = range.first; it != range.second; ++it)
+            // The hash may collide: only the features of this very cell.
+            if (cell_of_[it->second] == c) visit(it->second);
+        }
+  }
   static long long CellHash(long long x, long long y, long long z) {
     return (x * 73856093LL) ^ (y * 19349663LL) ^ (z * 83492791LL);
   }
