@@ -42,10 +42,12 @@ double MeanSpringLength(const PulledBar& bar, const RowMatX3d& positions) {
   return sum / bar.springs.size();
 }
 
+// Iterated to convergence: the default volume term's Hessian is approximate (docs/mechanics.md
+// "Volume term"), so Newton converges linearly and needs more iterations than with an exact one.
 QuasiStaticFitOptions ConvergedFit(double factor) {
   QuasiStaticFitOptions options;
   options.spring_factor = factor;
-  options.newton_iterations = 30;
+  options.newton_iterations = 100;
   options.linear_solver.type = LinearSolverType::kCholmod;
   return options;
 }
