@@ -15,6 +15,7 @@ void QuasiStaticFitOptions::Check() const {
   ARREG_CHECK_INPUT(newton_iterations >= 1, "", "fit.newton_iterations", "must be >= 1, got ",
                     newton_iterations);
   linear_solver.Check();
+  elastic.Check();
 }
 
 QuasiStaticFit::QuasiStaticFit(const QuasiStaticFitOptions& options) : options_(options) {
@@ -36,7 +37,7 @@ StepSummary QuasiStaticFit::Fit(const MechanicalState& state, const SpringEnergy
     io.warm_start = WarmStart::kVelocity;
     io.line_search = options_.line_search;
     integrator_.emplace(io);
-    elastic_ = CorotationalElasticity(elastic_.options());
+    elastic_ = CorotationalElasticity(options_.elastic);
     source_topology_version_ = state.topology_version();
     source_tetrahedra_ = state.num_tetrahedra();
     piece_ = ConnectedComponents(state.CurrentMesh(), Adjacency::kVertex, &num_pieces_);

@@ -34,6 +34,9 @@ struct QuasiStaticFitOptions {
   // frame of the six synthetic scenes where the dynamic step's search acted, and the search
   // costs a rotation pass per fit (0.3 ms on kidney-cut). Default false.
   bool line_search = false;
+  // The material's element options (volume term, rotation); the dynamic model's, so that both
+  // configurations minimise the same elastic energy.
+  CorotationalOptions elastic;
   void Check() const;
 };
 

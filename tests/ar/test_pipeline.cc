@@ -562,6 +562,17 @@ TEST(PipelineOptions, TrackingAndDetectorKeysRoundTrip) {
   EXPECT_EQ(j["tracking"]["drift_window_px"], 25);
   EXPECT_EQ(j["cutting"]["neighbours_per_feature"], 12);
   EXPECT_EQ(j["tracking"]["redetect_every_frames"], 0);  // off by default
+  EXPECT_EQ(j["mechanics"]["volume_term"], "jacobian");
+  scene.mechanics = {{"volume_term", "linear"}};
+  EXPECT_EQ(ReadPipelineOptions(scene).mechanics.volume_term, mechanics::VolumeTerm::kLinear);
+  scene.mechanics = {{"volume_term", "neo-hookean"}};
+  try {
+    ReadPipelineOptions(scene);
+    FAIL() << "an unknown volume term was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("volume_term"), std::string::npos) << e.what();
+  }
+  scene.mechanics = nlohmann::json::object();
   scene.tracking = {{"redetect_every_frames", 5},
                     {"redetect_hole_factor", 1.5},
                     {"attach_after_frames", 3},

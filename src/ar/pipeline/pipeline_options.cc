@@ -187,6 +187,10 @@ void ReadLifting(const Scene& scene, lift::FeatureLifterOptions* o) {
 void ReadMechanics(const Scene& scene, MechanicsStageOptions* o) {
   JsonObjectReader r(scene.mechanics, scene.path, "mechanics");
   r.Optional("spring_stiffness_relative", &o->spring_stiffness_relative);
+  std::string volume = o->volume_term == mechanics::VolumeTerm::kJacobian ? "jacobian" : "linear";
+  r.OptionalChoice("volume_term", {"jacobian", "linear"}, &volume);
+  o->volume_term =
+      volume == "jacobian" ? mechanics::VolumeTerm::kJacobian : mechanics::VolumeTerm::kLinear;
   r.Optional("spring_stiffness_n_per_m", &o->spring_stiffness_n_per_m);
   r.Optional("substeps", &o->substeps);
   r.Optional("newton_iterations", &o->newton_iterations);
@@ -342,17 +346,20 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                              ? "raycast"
                              : "intercept"},
       {"max_depth_jump_mm", o.lifting.max_depth_jump_mm}};
-  j["mechanics"] = {{"spring_stiffness_relative", o.mechanics.spring_stiffness_relative},
-                    {"spring_stiffness_n_per_m", o.mechanics.spring_stiffness_n_per_m},
-                    {"substeps", o.mechanics.substeps},
-                    {"newton_iterations", o.mechanics.newton_iterations},
-                    {"rayleigh_mass_per_s", o.mechanics.rayleigh_mass_per_s},
-                    {"rayleigh_stiffness_s", o.mechanics.rayleigh_stiffness_s},
-                    {"gravity_mm_per_s2", vec(o.mechanics.gravity_mm_per_s2)},
-                    {"fixed_vertices", o.mechanics.fixed_vertices},
-                    {"linear_solver", o.mechanics.linear_solver},
-                    {"line_search", o.mechanics.line_search},
-                    {"output_spring_factor", o.mechanics.output_spring_factor}};
+  j["mechanics"] = {
+      {"spring_stiffness_relative", o.mechanics.spring_stiffness_relative},
+      {"volume_term",
+       o.mechanics.volume_term == mechanics::VolumeTerm::kJacobian ? "jacobian" : "linear"},
+      {"spring_stiffness_n_per_m", o.mechanics.spring_stiffness_n_per_m},
+      {"substeps", o.mechanics.substeps},
+      {"newton_iterations", o.mechanics.newton_iterations},
+      {"rayleigh_mass_per_s", o.mechanics.rayleigh_mass_per_s},
+      {"rayleigh_stiffness_s", o.mechanics.rayleigh_stiffness_s},
+      {"gravity_mm_per_s2", vec(o.mechanics.gravity_mm_per_s2)},
+      {"fixed_vertices", o.mechanics.fixed_vertices},
+      {"linear_solver", o.mechanics.linear_solver},
+      {"line_search", o.mechanics.line_search},
+      {"output_spring_factor", o.mechanics.output_spring_factor}};
   j["cutting"] = {
       {"enabled", o.cutting.enabled},
       {"neighbour_radius_mm", o.cutting.detector.neighbour_radius_mm},

@@ -11,6 +11,7 @@
 #include "core/mesh.h"
 #include "core/scene.h"
 #include "cutting/detection.h"
+#include "mechanics/tet_element.h"
 #include "tracking/tracker.h"
 
 namespace arreg::pipeline {
@@ -29,6 +30,10 @@ struct MechanicsStageOptions {
   // 20 kPa kidney scenes (144-200), and gives ten times that on the 1 MPa band
   // (docs/pipeline.md, "Spring stiffness").
   double spring_stiffness_relative = 170.0;
+  // Volumetric part of the material (mechanics::CorotationalOptions::volume_term), for the
+  // dynamic model and the output fit: "jacobian" lambda/2 (det F - 1)^2 (default) or "linear"
+  // lambda/2 tr(eps)^2 (docs/mechanics.md, "Volume term").
+  mechanics::VolumeTerm volume_term = mechanics::VolumeTerm::kJacobian;
   // Absolute stiffness of each feature spring [N/m = mN/mm], overriding the relative one when
   // > 0 (`--stiffness`); default 0 (use spring_stiffness_relative).
   double spring_stiffness_n_per_m = 0.0;

@@ -242,7 +242,9 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   // --- Mechanics setup.
   mechanics::MechanicalState state(impl_->model.mesh, ToMechanicsMaterial(scene.material));
   state.SetFixed(o.mechanics.fixed_vertices);
-  mechanics::CorotationalElasticity elastic;
+  mechanics::CorotationalOptions elastic_options;
+  elastic_options.volume_term = o.mechanics.volume_term;
+  mechanics::CorotationalElasticity elastic(elastic_options);
   mechanics::SpringEnergy springs;
   std::optional<mechanics::GravityEnergy> gravity;
   std::vector<mechanics::EnergyTerm*> other_terms;  // all but the springs (the output fit's)
@@ -275,6 +277,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   if (o.mechanics.output_spring_factor > 0) {
     mechanics::QuasiStaticFitOptions fo;
     fo.spring_factor = o.mechanics.output_spring_factor;
+    fo.elastic = elastic_options;
     fo.linear_solver = io.linear_solver;
     output_fit.emplace(fo);
   }
