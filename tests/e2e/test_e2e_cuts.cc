@@ -137,8 +137,11 @@ TEST_P(EndToEndCut, RatesOverSeedsWithAndWithoutTopology) {
   // structure is lower with the cut, as the model's cut structure is capped (the truth's cut faces
   // find the model's caps, not the rim of a hole) and the uncut model no longer spans the gap.
   // Per seed an internal direction can differ by a few hundredths of a mm either way.
-  if (c.hausdorff_lower)
-    for (int i = 0; i < 4; ++i) EXPECT_LT(hausdorff_sum[i], hausdorff_sum[i + 4]) << "figure " << i;
+  if (c.hausdorff_lower) {
+    for (int i = 0; i < 4; ++i) {
+      EXPECT_LT(hausdorff_sum[i], hausdorff_sum[i + 4]) << "figure " << i;
+    }
+  }
 }
 
 // Thresholds: issue 33's acceptance (a cut found on every seed, final Dice >= 0.95 on every
