@@ -199,15 +199,8 @@ void CutDetector::AddFeatures(const RowMatX3d& rest_positions_mm, const std::vec
     ARREG_CHECK_INPUT(!index_of_id_.count(id) && fresh.insert(id).second, "",
                       "CutDetector::AddFeatures", "feature id ", id, " is already known");
   for (int i = 0; i < added; ++i) index_of_id_.emplace(ids[i], old_n + i);
-  // PairKey depends on the feature count: re-key the pairs seen so far.
-  std::vector<std::pair<int, int>> seen;
-  seen.reserve(ever_paired_.size());
-  for (long long key : ever_paired_)
-    seen.emplace_back(static_cast<int>(key / old_n), static_cast<int>(key % old_n));
   initial_mm_.conservativeResize(n, 3);
   initial_mm_.bottomRows(added) = rest_positions_mm;
-  ever_paired_.clear();
-  for (const auto& [a, b] : seen) ever_paired_.insert(PairKey(a, b));
   alive_.resize(n, 1);
   row_of_feature_.resize(n, -1);
   cluster_count_.resize(n, 0);

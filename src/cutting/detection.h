@@ -565,9 +565,9 @@ class CutDetector {
   std::unordered_multimap<long long, int> grid_;         // frame-0 positions by cell (size r_F)
   std::vector<Eigen::Matrix<long long, 3, 1>> cell_of_;  // per feature, its cell key
   std::unordered_set<long long> ever_paired_;            // PairKey of every pair C^t has held
-  // Key of the pair {a, b} in ever_paired_: min * #F + max.
-  long long PairKey(int a, int b) const {
-    return static_cast<long long>(std::min(a, b)) * num_features() + std::max(a, b);
+  // Key of the pair {a, b} in ever_paired_ (independent of the feature count, which grows).
+  static long long PairKey(int a, int b) {
+    return (static_cast<long long>(std::min(a, b)) << 32) | std::max(a, b);
   }
   std::vector<std::vector<int>> bridge_candidates_;  // per feature, see BridgeCandidates
   std::vector<char> bridge_candidates_known_;

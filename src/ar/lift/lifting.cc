@@ -259,6 +259,18 @@ std::vector<Ray> RaysThroughPixels(const PinholeCamera& camera, const RowMatX2d&
   return rays;
 }
 
+FeatureAttachment FeatureLifter::AttachAt(int row, const Eigen::Vector3d& point_mm,
+                                          double ray_distance_mm, LiftStatus how) {
+  attached_[row] = 1;
+  targets_.row(row) = point_mm.transpose();
+  status_[row] = how;
+  FeatureAttachment a;
+  a.attached = true;
+  a.point_mm = point_mm;
+  a.ray_distance_mm = ray_distance_mm;
+  return a;
+}
+
 std::vector<FeatureAttachment> FeatureLifter::Attach(const PinholeCamera& camera,
                                                      const RowMatX2d& pixels,
                                                      const SurfaceMesh* surface,
@@ -287,15 +299,9 @@ std::vector<FeatureAttachment> FeatureLifter::Attach(const std::vector<Ray>& ray
     for (int i = 0; i < n; ++i) {
       RayHit hit;
       if (!bvh_.Intersect(rays[i], &hit, options_.min_ray_distance_mm)) continue;
-      FeatureAttachment& a = out[i];
-      a.attached = true;
-      a.point_mm = hit.point_mm;
-      a.face = hit.face;
-      a.barycentric = hit.barycentric;
-      a.ray_distance_mm = hit.t;
-      attached_[i] = 1;
-      targets_.row(i) = hit.point_mm.transpose();
-      status_[i] = LiftStatus::kSurfaceHit;
+      out[i] = AttachAt(i, hit.point_mm, hit.t, LiftStatus::kSurfaceHit);
+      out[i].face = hit.face;
+      out[i].barycentric = hit.barycentric;
     }
     if (plane) {
       plane_ = *plane;
@@ -321,15 +327,7 @@ std::vector<FeatureAttachment> FeatureLifter::Attach(const std::vector<Ray>& ray
     if (!t) continue;
     plane_targets_.row(i) = rays[i].PointAt(*t).transpose();
     plane_valid_[i] = 1;
-    if (!on_surface) {
-      FeatureAttachment& a = out[i];
-      a.attached = true;
-      a.point_mm = rays[i].PointAt(*t);
-      a.ray_distance_mm = *t;
-      attached_[i] = 1;
-      targets_.row(i) = a.point_mm.transpose();
-      status_[i] = LiftStatus::kPlaneHit;
-    }
+    if (!on_surface) out[i] = AttachAt(i, rays[i].PointAt(*t), *t, LiftStatus::kPlaneHit);
   }
   return out;
 }
@@ -358,24 +356,15 @@ std::vector<FeatureAttachment> FeatureLifter::AttachMore(const std::vector<Ray>&
       plane_targets_.row(i) = rays[k].PointAt(*t_plane).transpose();
       plane_valid_[i] = 1;
     }
-    FeatureAttachment& a = out[k];
     if (on_surface) {
       RayHit hit;
       if (!bvh_.Intersect(rays[k], &hit, options_.min_ray_distance_mm)) continue;
-      a.point_mm = hit.point_mm;
-      a.face = hit.face;
-      a.barycentric = hit.barycentric;
-      a.ray_distance_mm = hit.t;
-      status_[i] = LiftStatus::kSurfaceHit;
-    } else {
-      if (!t_plane) continue;
-      a.point_mm = rays[k].PointAt(*t_plane);
-      a.ray_distance_mm = *t_plane;
-      status_[i] = LiftStatus::kPlaneHit;
+      out[k] = AttachAt(i, hit.point_mm, hit.t, LiftStatus::kSurfaceHit);
+      out[k].face = hit.face;
+      out[k].barycentric = hit.barycentric;
+    } else if (t_plane) {
+      out[k] = AttachAt(i, rays[k].PointAt(*t_plane), *t_plane, LiftStatus::kPlaneHit);
     }
-    a.attached = true;
-    attached_[i] = 1;
-    targets_.row(i) = a.point_mm.transpose();
   }
   return out;
 }

@@ -172,6 +172,11 @@ class FeatureLifter {
   const Plane& plane() const { return plane_; }
 
  private:
+  // Marks row `row` attached at point_mm (its target) found `how`; the attachment without a
+  // face (the caller adds the surface hit's face and weights).
+  FeatureAttachment AttachAt(int row, const Eigen::Vector3d& point_mm, double ray_distance_mm,
+                             LiftStatus how);
+
   FeatureLifterOptions options_;
   TriangleBvh bvh_;
   bool have_surface_ = false;
