@@ -111,4 +111,21 @@ class GeneralisedEnergyTerm {
   virtual void AddHessian(const GeneralisedState& state, double scale, HessianSink* sink) const = 0;
 };
 
+// Lumped inertia of a node: its mass and, for a frame node, its rotational
+// inertia about the node in the node's body axes (so the spatial inertia is
+// R I_body R^T). Elements distribute their mass onto their nodes and say how.
+struct NodeInertia {
+  double mass_kg = 0;                                      // kg
+  Eigen::Matrix3d body_inertia = Eigen::Matrix3d::Zero();  // kg mm^2, body axes
+};
+
+// Implemented by element terms that carry mass (shells, frame samples, tets):
+// adds each node's share into `inertia` (num_nodes() entries).
+class InertiaSource {
+ public:
+  virtual ~InertiaSource() = default;
+  virtual void AddNodeInertia(const GeneralisedState& state,
+                              std::vector<NodeInertia>* inertia) const = 0;
+};
+
 }  // namespace arreg::mechanics
