@@ -43,6 +43,7 @@ struct Settings {
   std::string cache;         // --cache
   std::string phantom_tool;  // --phantom-tool
   bool keep_runs = false;
+  std::vector<std::string> overrides;  // --set SECTION.KEY=VALUE, applied to every scene
   eval::BenchMetricsOptions metrics;
 };
 
@@ -180,7 +181,8 @@ eval::SceneResult ProcessScene(const eval::BenchScene& b, const Settings& s,
   try {
     say("scene");
     const std::string dir = EnsureScene(b, s);
-    const Scene scene = ReadScene(dir + "/scene.json");
+    Scene scene = ReadScene(dir + "/scene.json");
+    for (const std::string& o : s.overrides) SetSceneOption(&scene, o, "--set");
     ARREG_CHECK_INPUT(!scene.ground_truth_path.empty(), dir + "/scene.json", "ground_truth",
                       "the benchmark needs a ground-truth folder");
     say("run with topology");
@@ -335,6 +337,9 @@ int RunBenchAccuracy(int argc, char** argv) {
   parser.AddString("cache", &s.cache, "DIR",
                    "generated scenes (keyed by their parameters), runs, logs and results");
   parser.AddString("phantom-tool", &s.phantom_tool, "PATH", "the phantom scene generator");
+  parser.AddStringList("set", &s.overrides, "SECTION.KEY=VALUE",
+                       "override a module option of every scene (docs/pipeline.md), e.g. "
+                       "tracking.redetect_every_frames=5");
   parser.AddFlag("keep-runs", &s.keep_runs, "keep the run folders (DIR/runs/NAME/...)");
   parser.AddDouble("found-within", &s.metrics.found_within_mm, "MM",
                    "an applied cut this close (mean) to the true cut surface is a found cut");
@@ -352,6 +357,12 @@ int RunBenchAccuracy(int argc, char** argv) {
   ARREG_CHECK_INPUT(source == "synth" || source == "phantom" || source == "all", "", "--source",
                     "expected synth, phantom or all, got '", source, "'");
   ARREG_CHECK_INPUT(jobs >= 1, "", "--jobs", "must be >= 1, got ", jobs);
+  {
+    // A bad --set fails here, once, not in every scene's worker.
+    Scene probe;
+    for (const std::string& o : s.overrides) SetSceneOption(&probe, o, "--set");
+    pipeline::ReadPipelineOptions(probe).Check();
+  }
   ARREG_CHECK_INPUT(!quick || !parser.Given("split"), "", "--quick",
                     "runs the quick split; do not combine with --split");
   s.metrics.Check();

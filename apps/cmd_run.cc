@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "ar/debug/recorder.h"
 #include "ar/pipeline/record_writer.h"
@@ -56,6 +57,7 @@ class ProgressBar : public pipeline::FrameObserver {
 
 int RunRun(int argc, char** argv) {
   std::string scene_path, out_dir, lifting, lift_update;
+  std::vector<std::string> overrides;
   bool no_topology = false, no_video = false, png = false, quiet = false, wireframe = false;
   bool show_features = false, show_targets = false, show_springs = false, no_render = false;
   bool record_debug = false;
@@ -74,6 +76,9 @@ int RunRun(int argc, char** argv) {
       "the overlay video and the records of docs/run-format.md.");
   parser.AddString("scene", &scene_path, "S.json", "scene file (docs/scene-format.md)", true);
   parser.AddString("out", &out_dir, "DIR", "output folder (created)", true);
+  parser.AddStringList("set", &overrides, "SECTION.KEY=VALUE",
+                       "set a module option of the scene (docs/pipeline.md), e.g. "
+                       "cutting.enabled=false or tracking.redetect_every_frames=5");
   parser.AddFlag("no-topology", &no_topology, "register without cut handling");
   parser.AddInt("frames", &frames, "N", "process at most N frames (-1: all)");
   parser.AddInt(
@@ -113,7 +118,8 @@ int RunRun(int argc, char** argv) {
       "leaves complete outputs.");
   if (!parser.Parse(argc, argv)) return 0;
 
-  const Scene scene = ReadScene(scene_path);
+  Scene scene = ReadScene(scene_path);
+  for (const std::string& o : overrides) SetSceneOption(&scene, o, "--set");
   pipeline::PipelineOptions options = pipeline::ReadPipelineOptions(scene);
   if (no_topology) options.cutting.enabled = false;
   if (record_debug) options.cutting.refused_split_dir = out_dir + "/debug";

@@ -63,6 +63,14 @@ void OptionParser::AddString(const std::string& name, std::string* target,
   options_.push_back(std::move(o));
 }
 
+void OptionParser::AddStringList(const std::string& name, std::vector<std::string>* target,
+                                 const std::string& metavar, const std::string& help) {
+  Option o{name, metavar, help + " (repeatable)", "", false, false, [target](const std::string& v) {
+             target->push_back(v);
+           }};
+  options_.push_back(std::move(o));
+}
+
 void OptionParser::AddInt(const std::string& name, int* target, const std::string& metavar,
                           const std::string& help, bool required) {
   Option o{name,

@@ -36,6 +36,9 @@ class OptionParser {
               const std::string& help, bool required = false);
   void AddDouble(const std::string& name, double* target, const std::string& metavar,
                  const std::string& help, bool required = false);
+  // A repeatable option: each occurrence appends its value to `target`.
+  void AddStringList(const std::string& name, std::vector<std::string>* target,
+                     const std::string& metavar, const std::string& help);
   // Positional arguments, in order.
   void AddPositional(const std::string& metavar, std::string* target, const std::string& help,
                      bool required = true);

@@ -1,5 +1,6 @@
 #include "core/scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <set>
@@ -184,6 +185,38 @@ Scene ParseScene(const nlohmann::json& json, const std::string& path,
   }
   root.Finish();
   return scene;
+}
+
+void SetSceneOption(Scene* scene, const std::string& assignment, const std::string& where) {
+  const size_t eq = assignment.find('=');
+  const std::string key = assignment.substr(0, eq);
+  if (eq == std::string::npos || key.empty())
+    throw Error("", where, "expected SECTION.KEY=VALUE, got \"" + assignment + "\"");
+  std::vector<std::string> parts;
+  for (size_t begin = 0;;) {
+    const size_t dot = key.find('.', begin);
+    parts.push_back(key.substr(begin, dot == std::string::npos ? std::string::npos : dot - begin));
+    if (parts.back().empty()) throw Error("", where, "empty key component in \"" + key + "\"");
+    if (dot == std::string::npos) break;
+    begin = dot + 1;
+  }
+  if (parts.size() < 2 ||
+      std::find(kModuleSections.begin(), kModuleSections.end(), parts[0]) == kModuleSections.end())
+    throw Error("", where,
+                "\"" + key +
+                    "\" must be SECTION.KEY with SECTION one of tracking, mechanics, "
+                    "lifting, cutting, render, output");
+  const std::string text = assignment.substr(eq + 1);
+  nlohmann::json value = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+  if (value.is_discarded()) value = text;
+  nlohmann::json* node = ModuleSection(scene, parts[0]);
+  for (size_t i = 1; i + 1 < parts.size(); ++i) {
+    nlohmann::json& child = (*node)[parts[i]];
+    if (!child.is_object() && !child.is_null())
+      throw Error("", where, "\"" + parts[i] + "\" in \"" + key + "\" is not an object");
+    node = &child;
+  }
+  (*node)[parts.back()] = value;
 }
 
 Scene ReadScene(const std::string& path, const ReadSceneOptions& options) {

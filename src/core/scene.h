@@ -82,6 +82,14 @@ Scene ReadScene(const std::string& path, const ReadSceneOptions& options = {});
 Scene ParseScene(const nlohmann::json& json, const std::string& path,
                  const ReadSceneOptions& options = {});
 
+// Sets one option of a module section from "SECTION.KEY=VALUE" (e.g.
+// "tracking.redetect_every_frames=5", "cutting.detector=separation"): VALUE is
+// read as JSON (number, true/false, null, array, object, quoted string) and as
+// a plain string otherwise; "SECTION.A.B=..." sets a nested key. The module
+// validates the value when it reads its section. Throws arreg::Error naming
+// `where` (e.g. "--set") for a malformed assignment or an unknown section.
+void SetSceneOption(Scene* scene, const std::string& assignment, const std::string& where);
+
 // The JSON that ParseScene reads back to an equal scene. Paths are written
 // relative to `directory` when they lie under it, otherwise absolute. The camera
 // is written inline.

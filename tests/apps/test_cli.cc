@@ -97,6 +97,18 @@ TEST_F(Cli, BadInputExitsOneWithOneLineNamingTheFile) {
   EXPECT_NE(r.output.find("scene.json"), std::string::npos) << r.output;
 }
 
+TEST_F(Cli, BadSceneOverrideExitsOneNamingTheOption) {
+  for (const char* set : {"--set nosection.key=1", "--set tracking.no_such_key=1",
+                          "--set tracking.redetect_every_frames=x"}) {
+    const Result r = RunArreg(std::string("bench accuracy ") + set);
+    EXPECT_EQ(r.exit_code, 1) << set;
+    EXPECT_EQ(CountLines(r.output), 1) << r.output;
+    EXPECT_TRUE(r.output.find("--set") != std::string::npos ||
+                r.output.find("tracking.") != std::string::npos)
+        << r.output;
+  }
+}
+
 // `arreg bench cutting` on a small sphere: the split's figures reach the JSON (a sphere of
 // 6 rings has 4 x 36 - 24 = 120 triangles; a plane through its centre needs caps on both
 // sides), and a sphere too coarse to exist is refused with a one-line error naming the option.

@@ -279,5 +279,28 @@ TEST(Scene, FileChecksCanBeTurnedOff) {
   EXPECT_THROW(ReadScene(f.Write(j)), Error);
 }
 
+TEST(SceneOption, SetsTypedNestedValuesAndNamesBadAssignments) {
+  Scene scene;
+  SetSceneOption(&scene, "tracking.redetect_every_frames=5", "--set");
+  SetSceneOption(&scene, "cutting.enabled=false", "--set");
+  SetSceneOption(&scene, "mechanics.volume_term=linear", "--set");
+  SetSceneOption(&scene, "output.a.b=[1,2]", "--set");
+  EXPECT_EQ(scene.tracking["redetect_every_frames"], 5);
+  EXPECT_EQ(scene.cutting["enabled"], false);
+  EXPECT_EQ(scene.mechanics["volume_term"], "linear");
+  EXPECT_EQ(scene.output["a"]["b"], nlohmann::json::array({1, 2}));
+  SetSceneOption(&scene, "tracking.redetect_every_frames=0", "--set");  // the last one wins
+  EXPECT_EQ(scene.tracking["redetect_every_frames"], 0);
+  for (const char* bad :
+       {"tracking.x", "=1", "nosection.key=1", "tracking=1", "tracking..x=1", "output.a.b.c=1"}) {
+    try {
+      SetSceneOption(&scene, bad, "--set");
+      ADD_FAILURE() << bad << " was accepted";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.where(), "--set") << bad;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace arreg
