@@ -66,9 +66,9 @@ struct CutDetectorOptions {
   // n [-]: outlier count (weighted, see outlier_weight_cap) at which a cut point is inserted.
   // The thesis uses 8 (kidney 1) and 3 (kidney 2, whose cuts are crossed by few tracked pairs).
   // Default 4: on the synthetic cut-while-filmed bands the tracker keeps only a few pairs across
-  // a cut that opens wide, and n = 8 found no cut on band-cut-v (both seeds) and none on
-  // kidney-cut seed 2, while 4 finds one on every cut scene and none on band-stretch and the
-  // real clip (docs/detection.md). At least n / outlier_weight_cap pairs are needed.
+  // a cut that opens wide, and n = 8 misses such cuts, while 4 finds the synthetic cuts and
+  // makes none on stretched bands or the real clip (docs/detection.md). At least
+  // n / outlier_weight_cap pairs are needed.
   int min_outliers = 4;
   // [-] An outlier counts towards n as min(mu / (tau * mean(mu)), cap): a pair far above the
   // threshold is stronger evidence than one just above it. On a cut that opens wide the lip
@@ -132,12 +132,12 @@ struct CutDetectorOptions {
   // whose measure comes for at least 9/10 from bridges, so that the features next to the seam
   // on both lips are lost. A bridge's endpoints lie at unequal distances from the seam, and the
   // uncut model's misfit falls off with the distance from it: where both lips open, the
-  // endpoint next to the seam lies 14-16 mm outward and the one 15-25 px farther 4-7 mm
-  // (band-cut-v seed 22, frame 90), so a bridge's balance is lower than that of a pair whose
-  // endpoints both neighbour the seam (that cut's bridge clusters scored 0.36-0.50 in every frame
-  // from 53 to 119, so it was never started). A strain concentration's bridge clusters stay far
-  // below (at most 0.21 over 95 band-stretch seeds and 81 with twice the features). Not in the
-  // thesis; used only where below min_opening_balance (0 there disables both). Default 1/3.
+  // endpoint next to the seam lies 14-16 mm outward and the one 15-25 px farther 4-7 mm on a
+  // synthetic V-cut, so a bridge's balance is lower than that of a pair whose endpoints both
+  // neighbour the seam (0.36-0.50 for a cut seen only through bridges, which 0.5 never starts).
+  // A strain concentration's bridge clusters stay far below (at most 0.21 over 95 band-stretch
+  // seeds and 81 with twice the features). Not in the thesis; used only where below
+  // min_opening_balance (0 there disables both). Default 1/3.
   double min_opening_balance_bridges = 1.0 / 3.0;
   // [-] A cluster that would grow a lone point (the polyline's only point: nothing is cut yet)
   // and whose opening balance (min_opening_balance's) is at most this is rejected, and the lone
@@ -164,7 +164,7 @@ struct CutDetectorOptions {
   // the model-regularised one (mu2 = delta^t / delta^0, the variant of the thesis's band
   // examples; its own mean over C_F, the same tau, floor, weights and opening test). Growth is
   // not asked for it: the image-only measure keeps following a tear whose lips the tracker
-  // loses (with the model-regularised measure alone, band-cut-v seed 11 was never cut).
+  // loses, which the model-regularised measure alone can miss entirely.
   // Measured (docs/detection.md "Conservative starts"): on 81 band-stretch seeds it leaves 2
   // of the 6 false cut events (with twice the features 18 of 32), but it delays the start of
   // real cuts by up to 26 frames and no longer starts the weak middle slit of band-precut-middle
@@ -235,16 +235,15 @@ struct CutDetectorOptions {
   // same direction, so a pair that spanned the gap still does. Pairs never grow in number:
   // each dead pair gives at most one bridge. Bridges continue a cut; a point that would start a
   // polyline needs n among its cluster's pairs of C_F (weighted as any count), since features
-  // also die where the strain concentrates (on band-stretch seed 4, after the stem corner's
-  // one-sided cluster had been rejected for 24 frames, a cluster of 3 pairs with bridges there,
-  // weighted above n, started a false cut). Only while there is no polyline, and only in a
-  // frame where the pairs of C_F started none, a second pass takes the bridges as candidates
-  // too and starts one from a cluster of n pairs, counted one each as in the thesis: the lips'
-  // features can die before the cut opens enough to show (band-cut-v seeds 6 and 8: no pair of
-  // C_F is left across it). Likewise a point that would replace a lone first point (nothing
+  // also die where the strain concentrates (at a stretched band's stem corner a cluster of 3
+  // pairs with bridges, weighted above n, would start a false cut). Only while there is no
+  // polyline, and only in a frame where the pairs of C_F started none, a second pass takes the
+  // bridges as candidates too and starts one from a cluster of n pairs, counted one each as in
+  // the thesis: the lips' features can die before the cut opens enough to show (no pair of C_F
+  // is left across it). Likewise a point that would replace a lone first point (nothing
   // cut yet) needs n among its pairs of C_F or n pairs counted one each: the lips beyond that
   // point can be lost too widely for bridges, and the bridges farther along are then no growth
-  // of it (band-cut-v seed 11). Default 2.
+  // of it. Default 2.
   double bridge_radius_factor = 2.0;
   // [deg] half-angle of the cone around a dead neighbour's direction searched for its bridge.
   // Default 30.
@@ -278,8 +277,8 @@ struct CutDetectorOptions {
   // crosses it within r_pc + this factor times r_F of the extremity (frame 0), whatever the
   // extension (a border extension is a guess of how far S reaches, not an observation).
   // Outliers found only farther ahead are strain beyond the tear's tip that the model does not
-  // follow, not its continuation (band-cut-v seed 4: the band/stem junction, 28-50 mm ahead;
-  // docs/detection.md, "A tear grows from its tip"). Default 1.
+  // follow, not its continuation (e.g. a band's junction with its stem, 28-50 mm ahead of a
+  // V-tear; docs/detection.md, "A tear grows from its tip"). Default 1.
   double probe_max_lead_factor = 1.0;
   // The decision (see CutDecision). Default kRules: on the synthetic development scenes the
   // separation test matches the rules on the side precut, the S-cut and the kidney and makes no

@@ -808,8 +808,8 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
   // The exact predicates see the crack's contacts with the structure's surface as they are: a
   // crack vertex on a structure face or edge, a crack face in a structure face's plane. The
   // mendings above repair the usual results of such contacts; where a contact still leaves the
-  // caps on a non-manifold edge (kidney-cut seed 21: a curve piece ending at a curve vertex that
-  // the corefinement duplicated for another piece, and did not split itself), the crack is moved
+  // caps on a non-manifold edge (e.g. a curve piece ending at a curve vertex that the
+  // corefinement duplicated for another piece, and did not split itself), the crack is moved
   // by a step far below any length of the model, along a direction no mesh is aligned with, and
   // the split made again: the contact is then a crossing or no contact, as it is for almost every
   // placement of the crack.

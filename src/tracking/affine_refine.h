@@ -17,9 +17,8 @@ namespace arreg {
 struct DriftCorrectionOptions {
   bool enabled = true;  // default true
   // Side of the anchored window, pixels (odd, 9..63). Larger windows hold the six parameters
-  // better, smaller ones are more local (band-stretch seeds 31, 47, 62, features off by more
-  // than 3 px at frame 45: 14-17 / 10-13 / 8-11 / 4-8 / 6-10 / 7-17 with 15 / 19 / 25 / 31 /
-  // 41 / 51). Default 31.
+  // better, smaller ones are more local; 31 leaves the fewest features more than 3 px off on
+  // stretched synthetic bands (docs/tracking.md, "Drift correction"). Default 31.
   int window_px = 31;
   // Refinements every this many frames (1: every frame); between them the drift of a few
   // frames is small. Default 3.

@@ -1,4 +1,4 @@
-// Debug records of `arreg run --debug` (issue 8): per frame, everything needed to see why a cut
+// Debug records of `arreg run --debug`: per frame, everything needed to see why a cut
 // was or was not detected, with 2D projections precomputed (docs/debug.md describes the files).
 #pragma once
 

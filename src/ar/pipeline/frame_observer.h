@@ -1,5 +1,5 @@
 // Read-only view of one registration frame and the observer interface through which the
-// progress bar, the record writer and the debug recorder (issue 8) follow a run.
+// progress bar, the record writer and the debug recorder follow a run.
 #pragma once
 
 #include <Eigen/Core>

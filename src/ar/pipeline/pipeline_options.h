@@ -107,10 +107,10 @@ struct CuttingStageOptions {
   // already reached the outline where an end is within `foresight_mm` of it (the pipeline
   // passes r_F, the detector's neighbour radius): the S of that foreseen polyline is tried at
   // each depth, and the first depth at which it would not split the model is the event's (1/4
-  // at least). Later events of the cut go no deeper. A cut seen early, before its polyline
-  // spans the organ, otherwise went through the full depth at its first event, where the next
-  // event, one frame later, was held at 1/2 (synthetic kidney: 21 of 25 seeds; the internal
-  // structure's mean error rose by a quarter). 0 disables.
+  // at least). Later events of the cut go no deeper. Without it a cut seen early, before its
+  // polyline spans the organ, goes through the full depth at its first event, where the next
+  // event, one frame later, is held at 1/2 (on most synthetic kidney cuts; the internal
+  // structure's mean error rises by a quarter). 0 disables.
   // Set by the pipeline from first_event_foresight, not a scene key.
   double foresight_mm = 0.0;
   // The pipeline sets foresight_mm to r_F (true, default) or 0 (false).
