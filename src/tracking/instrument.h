@@ -17,7 +17,7 @@ namespace arreg {
 // image in seed pixels (w < seed_max_warmth, lightness >= min_seed_lightness) are instruments;
 // small regions (glints, dark vessels, a shadow) are not. On the real clip's hand-labelled
 // instruments (frames 0, 30, 60) the median warmth is -5 and tissue's 1st percentile 3.5-7
-// (docs/tracking.md "Instruments").
+// (docs/instruments.md).
 struct InstrumentMaskOptions {
   // Hue direction theta of tissue in the a*b* plane, degrees (0: red, 90: yellow). Tissue hues
   // span pink (-10) to yellow fat (70). Default 30.

@@ -291,7 +291,7 @@ PipelineOptions ReadPipelineOptions(const Scene& scene) {
   PipelineOptions o;
   o.tracking.max_features = 500;
   o.tracking.min_features = 200;
-  // Video frames are BGR: features on instruments are dropped (docs/tracking.md "Instruments").
+  // Video frames are BGR: features on instruments are dropped (docs/instruments.md).
   o.tracking.instruments.enabled = true;
   ReadTracking(scene, &o.tracking, &o);
   ReadLifting(scene, &o.lifting);
