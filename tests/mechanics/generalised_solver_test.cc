@@ -1,0 +1,361 @@
+// Generalised DOFs: the system matrix over 3- and 6-DOF nodes, the shared
+// terms (tets on point nodes, zero-length springs with frame offsets, gravity)
+// against finite differences, the static and implicit-Euler solvers against the
+// tet-only solvers, rigid-body rotation and boundary masks.
+#include <gtest/gtest.h>
+
+#include <Eigen/Eigenvalues>
+#include <cmath>
+#include <numeric>
+#include <random>
+
+#include "core/error.h"
+#include "mechanics/generalised_solver.h"
+#include "mechanics/generalised_terms.h"
+#include "mechanics/integrator.h"
+#include "mechanics/so3.h"
+#include "mechanics/spring_energy.h"
+#include "mechanics/units.h"
+#include "mechanics_test_util.h"
+
+namespace arreg::mechanics {
+namespace {
+
+using testing::SmallBox;
+
+Eigen::Matrix3d AxisAngle(const Eigen::Vector3d& axis, double degrees) {
+  return ExpSO3(axis.normalized() * degrees * M_PI / 180.0);
+}
+
+// The state after the increment dq from `base` (x += dx, R <- Exp(dphi) R).
+GeneralisedState Moved(const GeneralisedState& base, const Eigen::VectorXd& dq) {
+  GeneralisedState s = base;
+  s.ApplyIncrement(dq);
+  return s;
+}
+
+double ValueAt(GeneralisedEnergyTerm* term, const GeneralisedState& s) {
+  term->Update(s);
+  return term->Value(s);
+}
+
+Eigen::VectorXd GradientAt(GeneralisedEnergyTerm* term, const GeneralisedState& s) {
+  term->Update(s);
+  Eigen::VectorXd g = Eigen::VectorXd::Zero(s.num_dofs());
+  term->AddGradient(s, &g);
+  return g;
+}
+
+Eigen::MatrixXd HessianAt(GeneralisedEnergyTerm* term, const GeneralisedState& s) {
+  term->Update(s);
+  GeneralisedSystem system;
+  system.Build(s, {term});
+  term->AddHessian(s, 1.0, &system);
+  return Eigen::MatrixXd(system.matrix());
+}
+
+// Gradient of f(dq) = E(Moved(base, dq)) at dq = eps e_k, from the term's
+// gradient at that state (left increments there): rotation rows J_l(phi)^T g.
+Eigen::VectorXd CoordinateGradient(GeneralisedEnergyTerm* term, const GeneralisedState& base,
+                                   const Eigen::VectorXd& dq) {
+  const GeneralisedState s = Moved(base, dq);
+  Eigen::VectorXd g = GradientAt(term, s);
+  for (int n = 0; n < s.num_nodes(); ++n)
+    if (s.is_frame(n)) {
+      const int o = s.dof_offset(n) + 3;
+      g.segment<3>(o) = LeftJacobianSO3(dq.segment<3>(o)).transpose() * g.segment<3>(o);
+    }
+  return g;
+}
+
+// Central differences of the value (gradient) and of the coordinate gradient
+// (Hessian) along every DOF, against the term's own; tolerances relative to the
+// largest entry (the truncation error of h = 1e-6 steps is ~1e-12 of it, round-off
+// of the value differences ~1e-10).
+void CheckDerivatives(GeneralisedEnergyTerm* term, const GeneralisedState& state,
+                      bool check_hessian, double tolerance = 1e-6) {
+  const int n = state.num_dofs();
+  const double eps = 1e-6;
+  const Eigen::VectorXd g = GradientAt(term, state);
+  Eigen::VectorXd g_fd(n);
+  Eigen::MatrixXd h_fd(n, n);
+  for (int k = 0; k < n; ++k) {
+    Eigen::VectorXd dq = Eigen::VectorXd::Zero(n);
+    dq[k] = eps;
+    g_fd[k] = (ValueAt(term, Moved(state, dq)) - ValueAt(term, Moved(state, -dq))) / (2 * eps);
+    if (check_hessian)
+      h_fd.col(k) =
+          (CoordinateGradient(term, state, dq) - CoordinateGradient(term, state, -dq)) / (2 * eps);
+  }
+  const double gscale = std::max(1.0, g.cwiseAbs().maxCoeff());
+  EXPECT_LT((g - g_fd).cwiseAbs().maxCoeff(), tolerance * gscale) << term->name() << "\n"
+                                                                  << g.transpose() << "\n"
+                                                                  << g_fd.transpose();
+  if (!check_hessian) return;
+  const Eigen::MatrixXd h = HessianAt(term, state);
+  const double hscale = std::max(1.0, h.cwiseAbs().maxCoeff());
+  EXPECT_LT((h - h.transpose()).cwiseAbs().maxCoeff(), 1e-12 * hscale) << term->name();
+  EXPECT_LT((h - h_fd).cwiseAbs().maxCoeff(), tolerance * hscale) << term->name() << "\n"
+                                                                  << h << "\n\n"
+                                                                  << h_fd;
+}
+
+// A scene with frame nodes far from identity (90 and 170 degrees about
+// different axes), a point node, and springs between all kinds of anchors.
+struct MixedScene {
+  GeneralisedState state;
+  int f0, f1, p0;
+  MixedScene() {
+    f0 = state.AddFrameNode({0, 0, 0}, AxisAngle({1, 2, 3}, 90));
+    p0 = state.AddPointNode({10, 1, -2});
+    f1 = state.AddFrameNode({4, 8, 1}, AxisAngle({-2, 1, 0.5}, 170));
+    // Move away from the rest so that the springs are stretched in every direction.
+    state.mutable_positions() = testing::Perturbed(state.positions(), 2.0, 7);
+    state.mutable_rotation(f0) = AxisAngle({0, 1, 1}, 20) * state.rotation(f0);
+  }
+  void AddSprings(ZeroLengthSpringTerm* springs) const {
+    springs->Add(SpringAnchor::AtOffset(f0, {3, -1, 2}), SpringAnchor::Fixed({5, 6, -3}), 2.0);
+    springs->Add(SpringAnchor::AtOffset(f0, {-2, 4, 1}), SpringAnchor::AtOffset(f1, {1, 2, -5}),
+                 1.5);
+    springs->Add(SpringAnchor::AtOffset(f1, {0, 3, 3}), SpringAnchor::AtNode(p0), 3.0);
+    springs->Add(SpringAnchor::AtNode(p0), SpringAnchor::Fixed({-4, 2, 9}), 0.7);
+    springs->Add(SpringAnchor::AtNode(f1), SpringAnchor::AtNode(p0), 1.1);
+  }
+};
+
+TEST(GeneralisedSystem, PatternOfMixedBlocksAndDirichletIdentity) {
+  MixedScene scene;
+  ZeroLengthSpringTerm springs;
+  // Only f0 - f1 coupled: (f0, p0) is outside the pattern.
+  springs.Add(SpringAnchor::AtOffset(scene.f0, {1, 0, 0}), SpringAnchor::AtNode(scene.f1), 1.0);
+  GeneralisedSystem system;
+  system.Build(scene.state, {&springs});
+  EXPECT_EQ(system.num_dofs(), 15);
+  // Diagonal blocks 36 + 9 + 36, the f0-f1 pair twice 36.
+  EXPECT_EQ(system.nonzeros(), 36 + 9 + 36 + 2 * 36);
+  EXPECT_GE(system.BlockSlot(scene.f1, scene.f0), 0);
+  EXPECT_EQ(system.BlockSlot(scene.p0, scene.f0), -1);
+  EXPECT_THROW(system.AddBlock(scene.p0, scene.f0, Eigen::MatrixXd::Ones(3, 6), 1.0), Error);
+  EXPECT_THROW(system.AddBlock(scene.f0, scene.f0, Eigen::MatrixXd::Ones(3, 3), 1.0), Error);
+  // A block (a, b) lands at (a, b) and transposed at (b, a).
+  Eigen::MatrixXd block(6, 6);
+  for (int i = 0; i < 36; ++i) block(i % 6, i / 6) = i + 1;
+  system.AddBlock(scene.f0, scene.f1, block, 2.0);
+  const Eigen::MatrixXd dense(system.matrix());
+  const int o0 = scene.state.dof_offset(scene.f0), o1 = scene.state.dof_offset(scene.f1);
+  EXPECT_EQ((dense.block(o0, o1, 6, 6) - 2 * block).norm(), 0.0);
+  EXPECT_EQ((dense.block(o1, o0, 6, 6) - 2 * block.transpose()).norm(), 0.0);
+  // Simply supported f1 (translation fixed): its 3 translation rows/columns become identity.
+  scene.state.SetFixedTranslation(scene.f1, true);
+  system.ApplyDirichlet(scene.state.FixedDofMask());
+  const Eigen::MatrixXd fixed(system.matrix());
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(fixed.row(o1 + k).cwiseAbs().sum(), 1.0);
+    EXPECT_EQ(fixed.col(o1 + k).cwiseAbs().sum(), 1.0);
+    EXPECT_EQ(fixed(o1 + k, o1 + k), 1.0);
+  }
+  EXPECT_EQ((fixed.block(o0, o1 + 3, 6, 3) - 2 * block.rightCols<3>()).norm(), 0.0);
+}
+
+TEST(GeneralisedSystem, ProjectToPsdKeepsPsdAndClampsNegativeEigenvalues) {
+  Eigen::MatrixXd a = Eigen::MatrixXd::Random(6, 6);
+  a = (a * a.transpose()).eval();
+  Eigen::MatrixXd b = a;
+  ProjectToPsd(b);
+  EXPECT_LT((a - b).cwiseAbs().maxCoeff(), 1e-12 * a.cwiseAbs().maxCoeff());
+  Eigen::MatrixXd c = Eigen::MatrixXd::Random(6, 6);
+  c = (0.5 * (c + c.transpose())).eval();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> before(c);
+  ASSERT_LT(before.eigenvalues().minCoeff(), 0.0);
+  ProjectToPsd(c);
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> after(c);
+  EXPECT_GT(after.eigenvalues().minCoeff(), -1e-12);
+  // Positive eigenvalues kept (sorted ascending in both).
+  for (int k = 0; k < 6; ++k) {
+    if (before.eigenvalues()[k] > 0) {
+      EXPECT_NEAR(after.eigenvalues()[k], before.eigenvalues()[k], 1e-12);
+    }
+  }
+}
+
+TEST(GeneralisedTerms, SpringGradientAndHessianMatchFiniteDifferencesAtLargeRotations) {
+  MixedScene scene;
+  ZeroLengthSpringTerm springs(/*project_psd=*/false);
+  scene.AddSprings(&springs);
+  CheckDerivatives(&springs, scene.state, /*check_hessian=*/true);
+  // The frame-offset spring alone, at stored rotations of 90 and 170 degrees.
+  for (const double degrees : {90.0, 170.0}) {
+    GeneralisedState s;
+    const int f = s.AddFrameNode({1, 2, 3}, AxisAngle({1, -1, 2}, degrees));
+    ZeroLengthSpringTerm one(false);
+    one.Add(SpringAnchor::AtOffset(f, {4, 1, -2}), SpringAnchor::Fixed({-3, 5, 2}), 5.0);
+    CheckDerivatives(&one, s, true);
+  }
+}
+
+TEST(GeneralisedTerms, ProjectedSpringHessianIsPsdAndExactWherePsd) {
+  MixedScene scene;
+  ZeroLengthSpringTerm exact(false), projected(true);
+  scene.AddSprings(&exact);
+  scene.AddSprings(&projected);
+  const Eigen::MatrixXd he = HessianAt(&exact, scene.state);
+  const Eigen::MatrixXd hp = HessianAt(&projected, scene.state);
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> ee(he), ep(hp);
+  EXPECT_LT(ee.eigenvalues().minCoeff(), -1e-3);  // the exact one is indefinite here
+  EXPECT_GT(ep.eigenvalues().minCoeff(), -1e-10 * hp.norm());
+  // A hanging pendulum at rest (d antiparallel to the offset): the exact block is PSD
+  // and the projection leaves it unchanged.
+  GeneralisedState s;
+  const int f = s.AddFrameNode({0, 0, -12}, Eigen::Matrix3d::Identity());
+  ZeroLengthSpringTerm a(false), b(true);
+  for (ZeroLengthSpringTerm* t : {&a, &b})
+    t->Add(SpringAnchor::AtOffset(f, {0, 0, 10}), SpringAnchor::Fixed({0, 0, 0}), 4.0);
+  EXPECT_LT((HessianAt(&a, s) - HessianAt(&b, s)).cwiseAbs().maxCoeff(), 1e-12);
+}
+
+TEST(GeneralisedTerms, GravityGradientMatchesFiniteDifferences) {
+  MixedScene scene;
+  std::vector<NodeInertia> inertia(scene.state.num_nodes());
+  for (int n = 0; n < scene.state.num_nodes(); ++n) inertia[n].mass_kg = 0.01 * (n + 1);
+  GravityTerm gravity(inertia, {0, 0, -kStandardGravityMmPerS2});
+  CheckDerivatives(&gravity, scene.state, true);
+}
+
+// A tet body whose vertices sit on nodes in a shuffled order between frame nodes.
+struct ShuffledTets {
+  MechanicalState body{SmallBox({3, 2, 2}, {30, 20, 20}), Material{3000, 0.45, 1000}};
+  GeneralisedState state;
+  std::vector<int> vertex_node;
+  ShuffledTets() {
+    std::vector<int> order(body.num_vertices());
+    std::iota(order.begin(), order.end(), 0);
+    std::shuffle(order.begin(), order.end(), std::mt19937(3));
+    vertex_node.resize(body.num_vertices());
+    state.AddFrameNode({50, 0, 0}, AxisAngle({1, 0, 0}, 90));
+    for (int k = 0; k < body.num_vertices(); ++k) {
+      vertex_node[order[k]] = state.AddPointNode(body.rest_position(order[k]));
+      if (k == 5) state.AddFrameNode({60, 0, 0}, Eigen::Matrix3d::Identity());
+    }
+    const RowMatX3d x = testing::Perturbed(body.rest_positions(), 1.5, 11);
+    for (int v = 0; v < body.num_vertices(); ++v)
+      state.mutable_positions().row(vertex_node[v]) = x.row(v);
+  }
+};
+
+TEST(GeneralisedTerms, TetTermIsTheCorotationalElasticityOnItsNodes) {
+  ShuffledTets scene;
+  TetElasticityTerm term(&scene.body, scene.vertex_node);
+  // Its gradient is the exact gradient of its energy (polar rotations, elastic_energy.h).
+  CheckDerivatives(&term, scene.state, /*check_hessian=*/false, 1e-6);
+  // Energy, gradient and Hessian are the ones of CorotationalElasticity at the same x.
+  const RowMatX3d x = term.VertexPositions(scene.state);
+  CorotationalElasticity reference;
+  reference.Update(scene.body, x);
+  term.Update(scene.state);
+  // The same to the polar iteration's tolerance (warm-started from other rotations).
+  EXPECT_NEAR(term.Value(scene.state), reference.Value(scene.body, x),
+              1e-12 * reference.Value(scene.body, x));
+  RowMatX3d g_ref = RowMatX3d::Zero(x.rows(), 3);
+  reference.AddGradient(scene.body, x, &g_ref);
+  const Eigen::VectorXd g = GradientAt(&term, scene.state);
+  SystemMatrix k_ref(scene.body.num_vertices(), scene.body.tetrahedra());
+  reference.AddHessian(scene.body, x, 1.0, &k_ref);
+  const Eigen::MatrixXd kr(k_ref.matrix());
+  const Eigen::MatrixXd h = HessianAt(&term, scene.state);
+  for (int a = 0; a < x.rows(); ++a) {
+    const int oa = scene.state.dof_offset(scene.vertex_node[a]);
+    EXPECT_LT((g.segment<3>(oa) - g_ref.row(a).transpose()).norm(), 1e-12 * g_ref.norm());
+    for (int b = 0; b < x.rows(); ++b) {
+      const int ob = scene.state.dof_offset(scene.vertex_node[b]);
+      EXPECT_LT((h.block<3, 3>(oa, ob) - kr.block<3, 3>(3 * a, 3 * b)).norm(), 1e-12 * kr.norm());
+    }
+  }
+  // Frame nodes untouched by the term; lumped masses as the body's.
+  EXPECT_EQ(g.segment<6>(0).norm(), 0.0);
+  const std::vector<NodeInertia> inertia = CollectNodeInertia(scene.state, {&term});
+  const Eigen::VectorXd m = scene.body.LumpedVertexMasses();
+  for (int v = 0; v < m.size(); ++v) EXPECT_DOUBLE_EQ(inertia[scene.vertex_node[v]].mass_kg, m[v]);
+  EXPECT_EQ(inertia[0].mass_kg, 0.0);
+}
+
+// A cantilever under gravity, fixed at x = 0, on both paths.
+struct Cantilever {
+  MechanicalState body{SmallBox({6, 2, 2}, {60, 20, 20}), Material{30000, 0.45, 1000}};
+  CorotationalElasticity elastic;
+  GravityEnergy gravity{{0, 0, -kStandardGravityMmPerS2}};
+  GeneralisedState state;
+  std::unique_ptr<TetElasticityTerm> tets;
+  std::unique_ptr<GravityTerm> gterm;
+  Cantilever() {
+    for (int v = 0; v < body.num_vertices(); ++v)
+      if (body.rest_positions()(v, 0) == 0.0) body.SetFixed(v, true);
+    tets = std::make_unique<TetElasticityTerm>(&body, AddTetVertexNodes(body, &state));
+    gterm = std::make_unique<GravityTerm>(CollectNodeInertia(state, {tets.get()}),
+                                          Eigen::Vector3d(0, 0, -kStandardGravityMmPerS2));
+  }
+  RowMatX3d GeneralisedPositions() const { return tets->VertexPositions(state); }
+  RowMatX3d GeneralisedVelocities() const {
+    RowMatX3d v(body.num_vertices(), 3);
+    for (int i = 0; i < v.rows(); ++i) v.row(i) = state.velocities().row(tets->vertex_node()[i]);
+    return v;
+  }
+};
+
+TEST(GeneralisedStaticSolver, TetCantileverEqualsTheStaticSolver) {
+  Cantilever c;
+  StaticSolver reference(StaticSolverOptions{});
+  const StepSummary sr = reference.Solve(&c.body, &c.elastic, {&c.gravity});
+  ASSERT_EQ(sr.status, StepStatus::kConverged)
+      << sr.message << " " << sr.newton_iterations << " " << sr.last_increment_mm;
+  GeneralisedStaticSolver solver(GeneralisedStaticOptions{});
+  const GeneralisedSummary sg = solver.Solve(&c.state, {c.tets.get(), c.gterm.get()});
+  ASSERT_EQ(sg.status, StepStatus::kConverged) << sg.message;
+  const RowMatX3d u_ref = c.body.positions() - c.body.rest_positions();
+  const double scale = u_ref.cwiseAbs().maxCoeff();
+  EXPECT_GT(scale, 1.0);  // a real deflection (mm)
+  EXPECT_LT((c.GeneralisedPositions() - c.body.positions()).cwiseAbs().maxCoeff(), 1e-8 * scale);
+  EXPECT_EQ(sg.newton_iterations, sr.newton_iterations);
+}
+
+class ImplicitStepsAgree : public ::testing::TestWithParam<NewtonMode> {};
+
+TEST_P(ImplicitStepsAgree, TetCantileverEqualsTheImplicitEulerIntegrator) {
+  Cantilever c;
+  ImplicitEulerOptions o;
+  o.dt_s = 0.02;
+  o.newton_mode = GetParam();
+  o.max_newton_iterations = GetParam() == NewtonMode::kFixedIterations ? 2 : 20;
+  o.rayleigh_mass_alpha = 0.5;
+  o.rayleigh_stiffness_beta = 0.01;
+  GeneralisedImplicitEulerOptions g;
+  g.dt_s = o.dt_s;
+  g.newton_mode = o.newton_mode;
+  g.max_newton_iterations = o.max_newton_iterations;
+  g.rayleigh_mass_alpha = o.rayleigh_mass_alpha;
+  g.rayleigh_stiffness_beta = o.rayleigh_stiffness_beta;
+  ImplicitEulerIntegrator reference(o);
+  GeneralisedImplicitEuler euler(g);
+  const std::vector<NodeInertia> inertia = CollectNodeInertia(c.state, {c.tets.get()});
+  for (int step = 0; step < 8; ++step) {
+    const StepSummary sr = reference.Step(&c.body, &c.elastic, {&c.gravity});
+    const GeneralisedSummary sg = euler.Step(&c.state, {c.tets.get()}, {c.gterm.get()}, inertia);
+    ASSERT_EQ(sr.status, StepStatus::kConverged)
+        << sr.message << " " << sr.newton_iterations << " " << sr.last_increment_mm;
+    ASSERT_EQ(sg.status, StepStatus::kConverged) << sg.message;
+    EXPECT_EQ(sg.newton_iterations, sr.newton_iterations);
+    const double xs = (c.body.positions() - c.body.rest_positions()).cwiseAbs().maxCoeff();
+    const double vs = c.body.velocities().cwiseAbs().maxCoeff();
+    ASSERT_GT(xs, 0.0);
+    EXPECT_LT((c.GeneralisedPositions() - c.body.positions()).cwiseAbs().maxCoeff(), 1e-8 * xs)
+        << "step " << step;
+    EXPECT_LT((c.GeneralisedVelocities() - c.body.velocities()).cwiseAbs().maxCoeff(), 1e-8 * vs)
+        << "step " << step;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Modes, ImplicitStepsAgree,
+                         ::testing::Values(NewtonMode::kOneStep, NewtonMode::kFullNewton,
+                                           NewtonMode::kFixedIterations));
+
+}  // namespace
+}  // namespace arreg::mechanics
