@@ -1,0 +1,144 @@
+// Cubic Bezier triangle shell elements over frame nodes (6 DOFs per corner):
+// membrane (small strain) + Kirchhoff bending in a corotational element frame.
+//
+// Kinematics (per element, control points p1..p10 as in the seed's fig. 2):
+//   corners p_i = x_i; edge points p_j = x_i + R_i R_i0^T R_e0 S3 a_j, attached
+//   to their corner frame i (a_j: rest attachment segment in the element's rest
+//   frame R_e0; S3 = diag(S, 1) with S the element's in-plane stretch, see
+//   below); the central point from the other nine (seed eq. 7, quadratic
+//   precision). The element frame R_e is the 2D polar rotation of the corner
+//   triangle (seed eq. 31, iterated until the correction is below a tolerance),
+//   and S = R_e^T A (2x2, symmetric) its stretch, A the corner triangle's map
+//   from rest to current.
+// Energy: E = 1/2 xi^T K xi with the 12 deformational coordinates
+//   xi = (S11 - 1, S22 - 1, S12, Log(Q_1), Log(Q_2), Log(Q_3)),
+//   Q_i = R_e^T R_i R_i0^T R_e0 the corner rotations relative to the element
+//   frame. Rigid motions give xi = 0 exactly. K (12 x 12) is the linear
+//   stiffness of the Bezier interpolation (membrane + Kirchhoff bending, 6-point
+//   Gauss, seed eq. 24-29) in these coordinates.
+// Why the edge segment follows S: a purely rigid segment keeps the edge points
+// at 1/3 of the REST edge length from their corner, so a uniform stretch gives
+// a non-uniform strain along the edge (zero at the corners, 1.5x the mean in
+// the middle) and the element fails the constant-strain patch test (20 % too
+// stiff in extension at any mesh size). Following S makes constant strain exact;
+// neighbouring elements then share edge points only up to the difference of
+// their in-plane rotations (a non-conforming element that passes the patch test).
+#pragma once
+
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "mechanics/generalised_state.h"
+
+namespace arreg::mechanics {
+
+struct ShellMaterial {
+  double youngs_modulus_kpa = 3.0;            // kPa (= mN/mm^2); > 0
+  double poisson_ratio = 0.45;                // [0, 0.5)
+  double thickness_mm = 1.0;                  // > 0
+  double density_kg_per_mm3 = 1.0e-6;         // kg/mm^3 (water: 1e-6); >= 0
+  void Check() const;                         // throws arreg::Error naming the field
+};
+
+enum class ShellHessian {
+  kGaussNewton,     // B^T K B (B = d xi / d(x, phi)): positive semi-definite; drops the
+                    // geometric part sum_k (K xi)_k d2 xi_k, which is indefinite
+  kExact,           // the full Hessian (second-order forward differentiation, ~100x slower)
+  kExactProjected,  // the full Hessian with negative eigenvalues of each 18x18 block set to 0
+};
+
+struct BezierShellOptions {
+  ShellMaterial material;
+  ShellHessian hessian = ShellHessian::kGaussNewton;
+  // Iterated 2D polar correction of the element frame (seed section 3.4): stop
+  // when the correction angle is below polar_tolerance_rad (rad, default 1e-13)
+  // or after polar_max_iterations (default 5). With the exact kinematics the
+  // corner triangle's 2D gradient turns as F -> Q^T F with the frame, so the
+  // exact polar angle converges in one iteration; the second one checks it.
+  int polar_max_iterations = 5;
+  double polar_tolerance_rad = 1e-13;
+  void Check() const;
+};
+
+// Bernstein weights n_1..n_10 of the cubic Bezier triangle at (xi1, xi2)
+// (xi3 = 1 - xi1 - xi2), seed eq. 5.
+Eigen::Matrix<double, 10, 1> BezierTriangleWeights(double xi1, double xi2);
+
+// Rest rotations for shell nodes on a triangle mesh: z axis = the area-weighted
+// vertex normal, x axis = the first incident edge projected on the tangent plane.
+// positions: (#V x 3); triangles: (#T x 3) vertex indices, counter-clockwise
+// seen from the normal side. Throws arreg::Error for an index out of range or a
+// vertex without a non-degenerate triangle.
+std::vector<Eigen::Matrix3d> ShellVertexRotations(const RowMatX3d& positions,
+                                                  const std::vector<Eigen::Vector3i>& triangles);
+
+class BezierShell : public GeneralisedEnergyTerm, public InertiaSource {
+ public:
+  // triangles: (#T x 3) frame-node indices of `state`, counter-clockwise about
+  // the rest normals (the z axes of the nodes' rest rotations). Builds the rest
+  // control nets (seed section 2.2) and the element stiffnesses. Throws
+  // arreg::Error for invalid options, an index that is not a frame node, a
+  // degenerate triangle, or a rest normal that does not define edge points.
+  BezierShell(const GeneralisedState& state, const std::vector<Eigen::Vector3i>& triangles,
+              const BezierShellOptions& options);
+
+  std::string name() const override { return "bezier_shell"; }
+  void AppendStencils(std::vector<std::vector<int>>* stencils) const override;
+  double Value(const GeneralisedState& state) const override;
+  void AddGradient(const GeneralisedState& state, Eigen::VectorXd* gradient) const override;
+  // Hessian per options().hessian (default: Gauss-Newton, positive semi-definite).
+  void AddHessian(const GeneralisedState& state, double scale, HessianSink* sink) const override;
+
+  // Lumped mass: each Gauss point's mass rho t w |J| goes to the corners with
+  // its barycentric weights. Rotational inertia of corner i (body axes of the
+  // node): the same Gauss masses' second moment about the corner,
+  // sum lambda_i m_g (|r|^2 I - r r^T), r = rest position - corner, plus the
+  // through-thickness term m t^2/12 about the in-plane axes.
+  void AddNodeInertia(const GeneralisedState& state,
+                      std::vector<NodeInertia>* inertia) const override;
+
+  int num_elements() const { return static_cast<int>(elements_.size()); }
+  const Eigen::Vector3i& triangle(int element) const { return elements_[element].nodes; }
+  const BezierShellOptions& options() const { return options_; }
+  // Rest area of the element's Bezier surface (projected on its rest plane), mm^2.
+  double rest_area(int element) const { return elements_[element].area; }
+  // The 12 x 12 stiffness in the deformational coordinates xi (mN mm / unit^2).
+  const Eigen::Matrix<double, 12, 12>& local_stiffness(int element) const {
+    return elements_[element].k;
+  }
+
+  // The 12 deformational coordinates xi of an element (see the top of the file).
+  Eigen::Matrix<double, 12, 1> DeformationalCoordinates(const GeneralisedState& state,
+                                                        int element) const;
+  // Current control points (10 x 3, rows p1..p10) and, when `jacobian` is set,
+  // their derivative (30 x 18: rows p1.x, p1.y, p1.z, p2.x, ...; columns per
+  // corner (x, y, z, phi_x, phi_y, phi_z), phi a spatial rotation increment).
+  void ControlPoints(const GeneralisedState& state, int element,
+                     Eigen::Matrix<double, 10, 3>* points,
+                     Eigen::Matrix<double, 30, 18>* jacobian = nullptr) const;
+  // Element energy, gradient (18) and Hessian (18 x 18) per options().hessian.
+  double ElementEnergy(const GeneralisedState& state, int element,
+                       Eigen::Matrix<double, 18, 1>* gradient = nullptr,
+                       Eigen::Matrix<double, 18, 18>* hessian = nullptr) const;
+
+  // Internal per-element data (public so the implementation's helpers see it).
+  struct Element {
+    Eigen::Vector3i nodes;
+    Eigen::Matrix3d rest_frame;                 // R_e0 (columns: element axes in world)
+    Eigen::Matrix2d rest_edges_inverse;         // E0^-1, E0 = rest local [x2-x1, x3-x1]
+    Eigen::Matrix3d corner_link[3];             // C_i = R_i0^T R_e0
+    Eigen::Vector3d attachment[6];              // a_j (rest local), edge points p4..p9
+    Eigen::Matrix<double, 10, 3> rest_local;    // rest control points, local, centroid origin
+    Eigen::Matrix<double, 12, 12> k;            // stiffness in xi
+    double area = 0;
+    Eigen::Matrix<double, 3, 3> lumped_inertia[3];  // rest-local rotational inertia per corner
+    double lumped_mass[3] = {0, 0, 0};
+  };
+
+ private:
+  BezierShellOptions options_;
+  std::vector<Element> elements_;
+};
+
+}  // namespace arreg::mechanics
