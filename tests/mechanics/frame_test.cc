@@ -11,6 +11,7 @@
 #include "core/error.h"
 #include "core/mesh_generators.h"
 #include "mechanics/frame_model.h"
+#include "mechanics/generalised_solver.h"
 #include "mechanics/so3.h"
 #include "mechanics/units.h"
 
@@ -424,6 +425,57 @@ TEST(FrameModel, BadSamplesThrow) {
   for (int i = 0; i < sampling.frame_positions.rows(); ++i)
     point_nodes.push_back(points.AddPointNode(sampling.frame_positions.row(i).transpose()));
   EXPECT_THROW(FrameModel(points, point_nodes, sampling.samples, Tissue()), Error);
+}
+
+// Coupling by shared frames (seed 004 section 4.2): two stiff bodies joined
+// by a soft connective layer, three frame models over one column of frames
+// 20 x 20 x 30 mm (layers z in [0,10], [10,20], [20,30]); the models share the
+// frames at z = 10 and 20. The top face is clamped, gravity -z. With nu = 0 the
+// stress is uniaxial, sigma(z) = rho g z (weight of the column below z), and
+// the bottom face sinks by rho g sum_layers (z_top^2 - z_bottom^2) / (2 E)
+// (small strain: 0.4 % in the layer, so Saint Venant-Kirchhoff within 1 %).
+TEST(FrameCoupling, SharedFramesCarryTheLowerBody) {
+  const TetMesh column = MakeBoxTetMesh({20, 20, 30}, {2, 2, 6});
+  const double e_body = 1e6, e_tissue = 5e4;  // Pa
+  GeneralisedState state;
+  const std::vector<int> nodes = AddFrameNodes(column.vertices, &state);
+  const FrameSampling all = SampleTetMesh(column, 4);
+  std::vector<std::vector<FrameSample>> layer(3);
+  for (const FrameSample& sample : all.samples)
+    layer[std::min(2, static_cast<int>(sample.rest_position.z() / 10))].push_back(sample);
+  std::vector<std::unique_ptr<FrameModel>> models;
+  std::vector<std::unique_ptr<FrameGravity>> weights;
+  std::vector<GeneralisedEnergyTerm*> terms;
+  for (int k = 0; k < 3; ++k) {
+    const Material material{k == 1 ? e_tissue : e_body, 0.0, 1000.0};
+    models.push_back(std::make_unique<FrameModel>(state, nodes, layer[k], material));
+    weights.push_back(std::make_unique<FrameGravity>(
+        models.back().get(), Eigen::Vector3d(0, 0, -kStandardGravityMmPerS2)));
+    terms.push_back(models.back().get());
+    terms.push_back(weights.back().get());
+  }
+  for (int n : nodes)
+    if (state.rest_positions()(n, 2) == 30.0) {
+      state.SetFixedTranslation(n, true);
+      state.SetFixedRotation(n, true);
+    }
+  GeneralisedStaticOptions options;
+  options.tolerance_mm = 1e-10;
+  GeneralisedStaticSolver solver(options);
+  ASSERT_EQ(solver.Solve(&state, terms).status, StepStatus::kConverged);
+  const double rho_g = 1e-6 * kStandardGravityMmPerS2;                                    // mN/mm^3
+  const double e_b = e_body * kPaToInternalStress, e_t = e_tissue * kPaToInternalStress;  // kPa
+  const double expected = rho_g * (50 / e_b + 150 / e_t + 250 / e_b);                     // mm
+  double sink = 0;
+  int bottom = 0;
+  for (int n : nodes)
+    if (state.rest_positions()(n, 2) == 0.0) {
+      sink += state.rest_positions()(n, 2) - state.positions()(n, 2);
+      ++bottom;
+    }
+  sink /= bottom;
+  std::printf("bottom face sinks %.6f mm, uniaxial analytic %.6f mm\n", sink, expected);
+  EXPECT_NEAR(sink, expected, 0.01 * expected);
 }
 
 }  // namespace
