@@ -2,6 +2,7 @@
 // metrics are known in closed form, plus the input errors it must name.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
@@ -220,6 +221,30 @@ TEST(EvalReport, InterruptedRunIsEvaluatedOnItsFrames) {
   EXPECT_EQ(ev.frames.size(), 2u);
   EXPECT_DOUBLE_EQ(ev.dice_final, 0.75);
   EXPECT_FALSE(ev.feature_error_mean_mm.has_value());
+}
+
+TEST(EvalReport, FramesWithoutARunSurfaceAreSummarisedInOneWarning) {
+  const Folders f = MakeFolders("eval_report_missing_surfaces");
+  // The truth has surfaces at frames 0 and 2; the run keeps only frame 1's.
+  fs::remove(f.run / "surface" / (Name(0) + ".obj"));
+  fs::remove(f.run / "surface" / (Name(2) + ".obj"));
+  ::testing::internal::CaptureStderr();
+  const RunEvaluation ev = EvaluateRun(f.run.string(), f.gt.string(), FastOptions());
+  const std::string err = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_NE(err.find("no surface at 2 frames"), std::string::npos) << err;
+  EXPECT_NE(err.find("(first 0, last 2)"), std::string::npos) << err;
+  EXPECT_TRUE(ev.frames[1].dice.has_value());
+  EXPECT_FALSE(ev.frames[0].dice.has_value());
+  EXPECT_FALSE(ev.surface.has_value());
+
+  // A single such frame is named.
+  WriteText(f.run / "surface" / (Name(2) + ".obj"), SquareObj(-10, -10, 100, 20));
+  ::testing::internal::CaptureStderr();
+  EvaluateRun(f.run.string(), f.gt.string(), FastOptions());
+  const std::string one = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(std::count(one.begin(), one.end(), '\n'), 1) << one;
+  EXPECT_NE(one.find("no surface at frame 0 "), std::string::npos) << one;
 }
 
 }  // namespace

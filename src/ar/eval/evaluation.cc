@@ -222,10 +222,19 @@ RunEvaluation EvaluateRun(const std::string& run_dir, const std::string& gt_dir,
     if (f < info.frames) surface_frames.push_back(f);
   ARREG_CHECK_INPUT(!surface_frames.empty(), (fs::path(run_dir) / "surface").string(), "",
                     "the run saved no surface/NNNNNN.obj within its ", info.frames, " frames");
+  // One line for all such frames: a run saved with a coarser --save-every than
+  // the truth misses most of them.
+  std::vector<int> missing;
   for (int f : ListFrames(gt_dir, "surface", ".obj"))
     if (f < info.frames && !std::binary_search(surface_frames.begin(), surface_frames.end(), f))
-      ARREG_LOG_WARNING(run_dir, ": no surface at frame ", f,
-                        " where the ground truth has one; that frame is not evaluated");
+      missing.push_back(f);
+  if (missing.size() == 1)
+    ARREG_LOG_WARNING(run_dir, ": no surface at frame ", missing.front(),
+                      " where the ground truth has one; that frame is not evaluated");
+  else if (!missing.empty())
+    ARREG_LOG_WARNING(run_dir, ": no surface at ", missing.size(),
+                      " frames where the ground truth has one (first ", missing.front(), ", last ",
+                      missing.back(), "); those frames are not evaluated");
 
   int last_gt_surface_frame = -1;
   double dice_sum = 0.0;
