@@ -8,6 +8,7 @@
 #include "ar/eval/evaluation.h"
 #include "commands.h"
 #include "core/error.h"
+#include "core/progress.h"
 #include "option_parser.h"
 
 namespace arreg::cli {
@@ -73,20 +74,19 @@ int RunEval(int argc, char** argv) {
   o.hausdorff.sampling.seed = static_cast<uint64_t>(seed);
   o.color_maps = !no_colormaps;
   o.Check();
-  std::string stage;
-  if (!quiet)
-    o.progress = [&stage](int done, int total) {
-      std::fprintf(stderr, "\rarreg eval: %s frame %d/%d", stage.c_str(), done, total);
-      if (done == total) std::fprintf(stderr, "\n");
-    };
+  // One reporter per evaluated run: a bar on a terminal, lines in a log.
+  std::optional<ProgressReporter> progress;
+  if (!quiet) o.progress = [&progress](int done, int total) { progress->Update(done, total); };
 
-  stage = "run";
+  if (!quiet) progress.emplace("arreg eval: run frame", stderr, ProgressOptionsFor(stderr));
   const eval::RunEvaluation run = eval::EvaluateRun(run_dir, gt_dir, o);
+  progress.reset();
   PrintSummary(run);
   std::optional<eval::RunEvaluation> baseline;
   if (!baseline_dir.empty()) {
-    stage = "baseline";
+    if (!quiet) progress.emplace("arreg eval: baseline frame", stderr, ProgressOptionsFor(stderr));
     baseline = eval::EvaluateRun(baseline_dir, gt_dir, o);
+    progress.reset();
     PrintSummary(*baseline);
   }
   eval::WriteEvalReport(out_dir, gt_dir, run, baseline ? &*baseline : nullptr, o);

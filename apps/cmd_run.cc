@@ -1,6 +1,4 @@
 // `arreg run`: registers the scene's model to its video (overlay video and records).
-#include <unistd.h>
-
 #include <atomic>
 #include <chrono>
 #include <csignal>
@@ -15,6 +13,7 @@
 #include "commands.h"
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/progress.h"
 #include "core/scene.h"
 #include "option_parser.h"
 
@@ -24,32 +23,33 @@ namespace {
 std::atomic<bool> g_stop{false};
 extern "C" void OnSigint(int) { g_stop.store(true); }
 
-// Progress bar with frames per second on a terminal (stderr); silent in pipes.
-class ProgressBar : public pipeline::FrameObserver {
+// Progress with frames per second, springs and their mean length: a bar on a
+// terminal, a line every 10 % or 10 s in a log (core/progress.h).
+class RunProgress : public pipeline::FrameObserver {
  public:
   void OnStart(const pipeline::RunStart& start) override {
     total_ = start.expected_frames;
     std::fprintf(stderr, "arreg run: %d frames, %d features attached of %d detected\n", total_,
                  start.features_attached, start.features_detected);
+    reporter_.emplace("arreg run: frame", stderr, ProgressOptionsFor(stderr));
     t0_ = std::chrono::steady_clock::now();
   }
   void OnFrame(const pipeline::FrameState& f) override {
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
     const int done = f.frame + 1;
-    const int width = 30;
-    const int filled = total_ > 0 ? width * done / total_ : width;
-    std::fprintf(stderr, "\r[%s%s] %d/%d  %.1f fps  springs %d  mean %.2f mm ",
-                 std::string(filled, '#').c_str(), std::string(width - filled, ' ').c_str(), done,
-                 total_, s > 0 ? done / s : 0.0, f.stats.features_alive,
-                 f.stats.spring_length_mean_mm);
-    std::fflush(stderr);
+    char detail[128];
+    std::snprintf(detail, sizeof detail, "%.1f fps  springs %d  mean %.2f mm",
+                  s > 0 ? done / s : 0.0, f.stats.features_alive, f.stats.spring_length_mean_mm);
+    if (reporter_) reporter_->Update(done, total_, detail);
   }
   void OnFinish(const pipeline::RunSummary& s) override {
-    std::fprintf(stderr, "\n%s", s.interrupted ? "arreg run: interrupted\n" : "");
+    reporter_.reset();
+    if (s.interrupted) std::fprintf(stderr, "arreg run: interrupted\n");
   }
 
  private:
   int total_ = 0;
+  std::optional<ProgressReporter> reporter_;
   std::chrono::steady_clock::time_point t0_;
 };
 
@@ -107,7 +107,7 @@ int RunRun(int argc, char** argv) {
   parser.AddString("lifting", &lifting, "surface|plane", "lifting target (default surface)");
   parser.AddString("lift-update", &lift_update, "intercept|raycast",
                    "surface target update (default intercept, thesis eq. 7.1)");
-  parser.AddFlag("quiet", &quiet, "no progress bar");
+  parser.AddFlag("quiet", &quiet, "no progress on stderr");
   parser.AddFlag("debug", &record_debug,
                  "record per-frame debug state in DIR/debug/ for `arreg debug`, and the inputs of "
                  "any refused internal-structure split (docs/debug.md)");
@@ -157,9 +157,9 @@ int RunRun(int argc, char** argv) {
 
   CreateDirectories(out_dir);
   pipeline::RegistrationPipeline pipe(scene, options);
-  ProgressBar progress;
+  RunProgress progress;
   pipeline::RecordWriter records(out_dir, options.output.png_frames);
-  if (!quiet && isatty(STDERR_FILENO)) pipe.AddObserver(&progress);
+  if (!quiet) pipe.AddObserver(&progress);
   pipe.AddObserver(&records);
   std::optional<debug::DebugRecorder> debug_recorder;
   if (record_debug) pipe.AddObserver(&debug_recorder.emplace(debug::DebugRecorderOptions{out_dir}));

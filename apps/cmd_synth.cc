@@ -1,11 +1,13 @@
 // `arreg synth`: generates a synthetic benchmark scene with ground truth.
 #include <cstdio>
+#include <optional>
 #include <string>
 
 #include "ar/synth/generator.h"
 #include "ar/synth/scenarios.h"
 #include "commands.h"
 #include "core/error.h"
+#include "core/progress.h"
 #include "option_parser.h"
 
 namespace arreg::cli {
@@ -65,12 +67,13 @@ int RunSynth(int argc, char** argv) {
     o.height = h;
   }
   o.write_video = !no_video;
-  if (!quiet)
-    o.progress = [](int done, int total) {
-      std::fprintf(stderr, "\rarreg synth: frame %d/%d", done, total);
-      if (done == total) std::fprintf(stderr, "\n");
-    };
+  std::optional<ProgressReporter> progress;
+  if (!quiet) {
+    progress.emplace("arreg synth: frame", stderr, ProgressOptionsFor(stderr));
+    o.progress = [&progress](int done, int total) { progress->Update(done, total); };
+  }
   const synth::SynthSummary s = synth::GenerateSyntheticScene(o);
+  progress.reset();
   std::printf("scenario %s: %d frames in %.1f s -> %s\n", o.scenario.c_str(), s.frames, s.seconds,
               o.out_dir.c_str());
   std::printf("truth: %d tetrahedra, %d vertices (%d after the cut); model: %d tetrahedra\n",

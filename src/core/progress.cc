@@ -50,7 +50,7 @@ void ProgressReporter::UpdateAt(int done, int total, const std::string& detail, 
       bar = " [" + std::string(filled, '#') + std::string(width - filled, ' ') + "]";
     }
     // Trailing spaces wipe what a longer previous line left.
-    std::fprintf(stream_, "\r%s%s %d/%d%s   ", label_.c_str(), bar.c_str(), done, total,
+    std::fprintf(stream_, "\r%s %d/%d%s%s   ", label_.c_str(), done, total, bar.c_str(),
                  tail.c_str());
     line_open_ = true;
     if (total > 0 && done >= total) Finish();
@@ -64,10 +64,10 @@ void ProgressReporter::UpdateAt(int done, int total, const std::string& detail, 
   const bool time_due = elapsed_s - last_line_s_ >= options_.line_every_s;
   if (!complete && !fraction_due && !time_due) return;
   if (total > 0)
-    std::fprintf(stream_, "%s: %d/%d (%.0f %%)%s\n", label_.c_str(), done, total, 100.0 * fraction,
+    std::fprintf(stream_, "%s %d/%d (%.0f %%)%s\n", label_.c_str(), done, total, 100.0 * fraction,
                  tail.c_str());
   else
-    std::fprintf(stream_, "%s: %d%s\n", label_.c_str(), done, tail.c_str());
+    std::fprintf(stream_, "%s %d%s\n", label_.c_str(), done, tail.c_str());
   std::fflush(stream_);
   ++lines_printed_;
   last_line_done_ = done;

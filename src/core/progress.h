@@ -23,8 +23,10 @@ struct ProgressOptions {
 // lines every 10 % or 10 s.
 ProgressOptions ProgressOptionsFor(std::FILE* stream);
 
-// Reports `done` of `total` units under a label ("arreg eval: run"). Each call
-// to Update may print; Finish ends the terminal line. Not thread-safe.
+// Reports `done` of `total` units after a label that names them ("arreg eval:
+// run frame" prints "arreg eval: run frame 3/90 (3 %)" in lines mode, "arreg
+// eval: run frame 3/90 [#  ...  ]" on a terminal). Each call to Update may
+// print; Finish ends the terminal line. Not thread-safe.
 class ProgressReporter {
  public:
   ProgressReporter(std::string label, std::FILE* stream, const ProgressOptions& options);

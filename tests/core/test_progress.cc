@@ -39,7 +39,7 @@ TEST(Progress, LinesModePrintsEveryTenthAndTheEndWithoutCarriageReturns) {
   std::FILE* f = std::tmpfile();
   ASSERT_NE(f, nullptr);
   {
-    ProgressReporter p("arreg test", f, ProgressOptions{});  // lines, 10 %, 10 s
+    ProgressReporter p("arreg test: frame", f, ProgressOptions{});  // lines, 10 %, 10 s
     for (int done = 1; done <= 120; ++done) p.UpdateAt(done, 120, "x", 0.01 * done);
     EXPECT_EQ(p.lines_printed(), 10);
   }
@@ -48,9 +48,9 @@ TEST(Progress, LinesModePrintsEveryTenthAndTheEndWithoutCarriageReturns) {
   EXPECT_EQ(text.find('\r'), std::string::npos);
   const std::vector<std::string> lines = Lines(text);
   ASSERT_EQ(lines.size(), 10u);
-  EXPECT_EQ(lines[0], "arreg test: 12/120 (10 %)  x");
-  EXPECT_EQ(lines[4], "arreg test: 60/120 (50 %)  x");
-  EXPECT_EQ(lines[9], "arreg test: 120/120 (100 %)  x");
+  EXPECT_EQ(lines[0], "arreg test: frame 12/120 (10 %)  x");
+  EXPECT_EQ(lines[4], "arreg test: frame 60/120 (50 %)  x");
+  EXPECT_EQ(lines[9], "arreg test: frame 120/120 (100 %)  x");
 }
 
 TEST(Progress, LinesModePrintsAfterTheTimeLimitAndOnceForAJumpOverSeveralTenths) {
@@ -70,10 +70,10 @@ TEST(Progress, LinesModePrintsAfterTheTimeLimitAndOnceForAJumpOverSeveralTenths)
   const std::vector<std::string> lines = Lines(ReadBack(f));
   std::fclose(f);
   ASSERT_EQ(lines.size(), 4u);
-  EXPECT_EQ(lines[0], "slow: 2/1000 (0 %)");
-  EXPECT_EQ(lines[1], "slow: 4/1000 (0 %)");
-  EXPECT_EQ(lines[2], "slow: 350/1000 (35 %)");
-  EXPECT_EQ(lines[3], "slow: 400/1000 (40 %)");
+  EXPECT_EQ(lines[0], "slow 2/1000 (0 %)");
+  EXPECT_EQ(lines[1], "slow 4/1000 (0 %)");
+  EXPECT_EQ(lines[2], "slow 350/1000 (35 %)");
+  EXPECT_EQ(lines[3], "slow 400/1000 (40 %)");
 }
 
 TEST(Progress, UnknownTotalPrintsByTimeOnly) {
@@ -84,8 +84,8 @@ TEST(Progress, UnknownTotalPrintsByTimeOnly) {
   const std::vector<std::string> lines = Lines(ReadBack(f));
   std::fclose(f);
   ASSERT_EQ(lines.size(), 3u);
-  EXPECT_EQ(lines[0], "open: 10");
-  EXPECT_EQ(lines[2], "open: 30");
+  EXPECT_EQ(lines[0], "open 10");
+  EXPECT_EQ(lines[2], "open 30");
 }
 
 TEST(Progress, TerminalModeRedrawsOneLineAndEndsItOnce) {
@@ -101,7 +101,7 @@ TEST(Progress, TerminalModeRedrawsOneLineAndEndsItOnce) {
   }
   const std::string text = ReadBack(f);
   std::fclose(f);
-  EXPECT_EQ(text, "\rbar [#   ] 1/4   \rbar [##  ] 2/4   \rbar [### ] 3/4   \rbar [####] 4/4   \n");
+  EXPECT_EQ(text, "\rbar 1/4 [#   ]   \rbar 2/4 [##  ]   \rbar 3/4 [### ]   \rbar 4/4 [####]   \n");
 }
 
 TEST(Progress, AnInterruptedTerminalLineIsEndedByTheDestructor) {
