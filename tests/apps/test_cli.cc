@@ -129,4 +129,40 @@ TEST_F(Cli, BenchCuttingReportsTheStructureSplit) {
   EXPECT_NE(r.output.find("--structure-rings"), std::string::npos) << r.output;
 }
 
+// Progress written to a pipe or log file (not a terminal) is whole lines, never a bar
+// redrawn with carriage returns, for synth, run and eval alike; and eval sums up the frames
+// where the truth has a surface and the run saved none in one warning line. A 6-frame scene
+// at 160x128 keeps this to seconds.
+TEST_F(Cli, ProgressInALogIsWholeLinesAndEvalSummarisesMissingSurfaces) {
+  const std::string dir = arreg::testing::ScratchDir("cli_progress");
+  Result r =
+      RunArreg("synth --scenario band-stretch --frames 6 --size 160x128 --gt-every 1 --out " + dir +
+               "/scene");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find('\r'), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("arreg synth: frame 6/6 (100 %)\n"), std::string::npos) << r.output;
+
+  // Surfaces saved at frames 0, 3 and 5 (the last); the truth has one at every frame.
+  r = RunArreg("run --scene " + dir + "/scene/scene.json --out " + dir +
+               "/run --no-video --save-every 3");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find('\r'), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("arreg run: frame 6/6 (100 %)"), std::string::npos) << r.output;
+
+  r = RunArreg("eval --run " + dir + "/run --gt " + dir + "/scene/gt --out " + dir +
+               "/report --no-colormaps --min-samples 1000 --max-samples 2000");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find('\r'), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("arreg eval: run frame 3/3 (100 %)"), std::string::npos) << r.output;
+  size_t warnings = 0;
+  for (size_t at = r.output.find("no surface at"); at != std::string::npos;
+       at = r.output.find("no surface at", at + 1))
+    ++warnings;
+  EXPECT_EQ(warnings, 1u) << r.output;
+  EXPECT_NE(
+      r.output.find("no surface at 3 frames where the ground truth has one (first 1, last 4)"),
+      std::string::npos)
+      << r.output;
+}
+
 }  // namespace
