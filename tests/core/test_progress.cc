@@ -15,16 +15,29 @@
 namespace arreg {
 namespace {
 
-// What the reporter wrote into a temporary file.
-std::string ReadBack(std::FILE* f) {
-  std::fflush(f);
-  std::rewind(f);
-  std::string text;
-  char buffer[256];
-  size_t n = 0;
-  while ((n = std::fread(buffer, 1, sizeof buffer, f)) > 0) text.append(buffer, n);
-  return text;
-}
+// A temporary file the reporter writes into, read back whole.
+class Sink {
+ public:
+  Sink() : f_(std::tmpfile()) { EXPECT_NE(f_, nullptr) << "no temporary file"; }
+  ~Sink() {
+    if (f_) std::fclose(f_);
+  }
+  Sink(const Sink&) = delete;
+  Sink& operator=(const Sink&) = delete;
+  std::FILE* get() const { return f_; }
+  std::string Text() const {
+    std::fflush(f_);
+    std::rewind(f_);
+    std::string text;
+    char buffer[256];
+    size_t n = 0;
+    while ((n = std::fread(buffer, 1, sizeof buffer, f_)) > 0) text.append(buffer, n);
+    return text;
+  }
+
+ private:
+  std::FILE* f_;
+};
 
 std::vector<std::string> Lines(const std::string& text) {
   std::vector<std::string> lines;
@@ -36,15 +49,13 @@ std::vector<std::string> Lines(const std::string& text) {
 }
 
 TEST(Progress, LinesModePrintsEveryTenthAndTheEndWithoutCarriageReturns) {
-  std::FILE* f = std::tmpfile();
-  ASSERT_NE(f, nullptr);
+  Sink sink;
   {
-    ProgressReporter p("arreg test: frame", f, ProgressOptions{});  // lines, 10 %, 10 s
+    ProgressReporter p("arreg test: frame", sink.get(), ProgressOptions{});  // lines, 10 %, 10 s
     for (int done = 1; done <= 120; ++done) p.UpdateAt(done, 120, "x", 0.01 * done);
     EXPECT_EQ(p.lines_printed(), 10);
   }
-  const std::string text = ReadBack(f);
-  std::fclose(f);
+  const std::string text = sink.Text();
   EXPECT_EQ(text.find('\r'), std::string::npos);
   const std::vector<std::string> lines = Lines(text);
   ASSERT_EQ(lines.size(), 10u);
@@ -54,11 +65,10 @@ TEST(Progress, LinesModePrintsEveryTenthAndTheEndWithoutCarriageReturns) {
 }
 
 TEST(Progress, LinesModePrintsAfterTheTimeLimitAndOnceForAJumpOverSeveralTenths) {
-  std::FILE* f = std::tmpfile();
-  ASSERT_NE(f, nullptr);
+  Sink sink;
   ProgressOptions o;
   o.line_every_s = 5.0;
-  ProgressReporter p("slow", f, o);
+  ProgressReporter p("slow", sink.get(), o);
   p.UpdateAt(1, 1000, "", 1.0);     // 0.1 %, 1 s: nothing due
   p.UpdateAt(2, 1000, "", 5.5);     // 5.5 s since the start: a line
   p.UpdateAt(3, 1000, "", 9.0);     // 3.5 s since that line: nothing
@@ -67,8 +77,7 @@ TEST(Progress, LinesModePrintsAfterTheTimeLimitAndOnceForAJumpOverSeveralTenths)
   p.UpdateAt(399, 1000, "", 10.8);  // the next is due at 40 %
   p.UpdateAt(400, 1000, "", 10.9);
   p.UpdateAt(400, 1000, "", 20.0);  // the same count again: nothing new to say
-  const std::vector<std::string> lines = Lines(ReadBack(f));
-  std::fclose(f);
+  const std::vector<std::string> lines = Lines(sink.Text());
   ASSERT_EQ(lines.size(), 4u);
   EXPECT_EQ(lines[0], "slow 2/1000 (0 %)");
   EXPECT_EQ(lines[1], "slow 4/1000 (0 %)");
@@ -77,41 +86,35 @@ TEST(Progress, LinesModePrintsAfterTheTimeLimitAndOnceForAJumpOverSeveralTenths)
 }
 
 TEST(Progress, UnknownTotalPrintsByTimeOnly) {
-  std::FILE* f = std::tmpfile();
-  ASSERT_NE(f, nullptr);
-  ProgressReporter p("open", f, ProgressOptions{});
+  Sink sink;
+  ProgressReporter p("open", sink.get(), ProgressOptions{});
   for (int done = 1; done <= 30; ++done) p.UpdateAt(done, 0, "", done);  // one per second
-  const std::vector<std::string> lines = Lines(ReadBack(f));
-  std::fclose(f);
+  const std::vector<std::string> lines = Lines(sink.Text());
   ASSERT_EQ(lines.size(), 3u);
   EXPECT_EQ(lines[0], "open 10");
   EXPECT_EQ(lines[2], "open 30");
 }
 
 TEST(Progress, TerminalModeRedrawsOneLineAndEndsItOnce) {
-  std::FILE* f = std::tmpfile();
-  ASSERT_NE(f, nullptr);
+  Sink sink;
   ProgressOptions o;
   o.terminal = true;
   o.bar_width = 4;
   {
-    ProgressReporter p("bar", f, o);
+    ProgressReporter p("bar", sink.get(), o);
     for (int done = 1; done <= 4; ++done) p.UpdateAt(done, 4, "", done);
     p.Finish();  // already ended at 4/4: no second newline
   }
-  const std::string text = ReadBack(f);
-  std::fclose(f);
+  const std::string text = sink.Text();
   EXPECT_EQ(text, "\rbar 1/4 [#   ]   \rbar 2/4 [##  ]   \rbar 3/4 [### ]   \rbar 4/4 [####]   \n");
 }
 
 TEST(Progress, AnInterruptedTerminalLineIsEndedByTheDestructor) {
-  std::FILE* f = std::tmpfile();
-  ASSERT_NE(f, nullptr);
+  Sink sink;
   ProgressOptions o;
   o.terminal = true;
-  { ProgressReporter("bar", f, o).UpdateAt(1, 3, "", 0.0); }
-  const std::string text = ReadBack(f);
-  std::fclose(f);
+  { ProgressReporter("bar", sink.get(), o).UpdateAt(1, 3, "", 0.0); }
+  const std::string text = sink.Text();
   ASSERT_FALSE(text.empty());
   EXPECT_EQ(text.back(), '\n');
   EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1);
