@@ -277,15 +277,27 @@ GeneralisedSummary GeneralisedImplicitEuler::SubStep(
   const bool keep_k0 = beta > 0 && (max_it > 1 || options_.line_search);
   Eigen::VectorXd q(state->num_dofs());  // (x - x_n, Log(R R_n^T)) per node
   std::vector<Eigen::Matrix3d> jinv(nn, Eigen::Matrix3d::Identity());  // J_l^-1(theta)
+  // Log(R R_n^T) per frame node, composed from the increments applied in this step rather
+  // than taken from the matrices: the first increment d gives theta = d exactly, where the
+  // log of a rotation of angle t loses the digits below 1e-16 / t (the angular momentum of a
+  // free body would drift by 1e-13 per step).
+  std::vector<Eigen::Vector3d> theta(nn, Eigen::Vector3d::Zero()), theta_line(nn);
+  const auto advance = [&](double step, const Eigen::VectorXd& increment) {
+    state->ApplyIncrement(step * increment);
+    for (int n = 0; n < nn; ++n) {
+      if (!state->is_frame(n)) continue;
+      const Eigen::Vector3d d = step * increment.segment<3>(state->dof_offset(n) + 3);
+      theta[n] = theta_line[n].squaredNorm() == 0 ? d : LogSO3(ExpSO3(d) * ExpSO3(theta_line[n]));
+    }
+  };
   // q and J_l^-1 at the current configuration.
   const auto step_coordinates = [&]() {
     for (int n = 0; n < nn; ++n) {
       const int o = state->dof_offset(n);
       q.segment<3>(o) = (state->position(n) - start.positions.row(n).transpose());
       if (!state->is_frame(n)) continue;
-      const Eigen::Vector3d theta = LogSO3(state->rotation(n) * start.rotations[n].transpose());
-      q.segment<3>(o + 3) = theta;
-      jinv[n] = LeftJacobianInverseSO3(theta);
+      q.segment<3>(o + 3) = theta[n];
+      jinv[n] = LeftJacobianInverseSO3(theta[n]);
     }
   };
   // Phi at the current configuration (terms updated there); the damping terms vanish at
@@ -299,10 +311,10 @@ GeneralisedSummary GeneralisedImplicitEuler::SubStep(
       phi += 0.5 * inertia[n].mass_kg / (h * h) * (dx - h * v0.row(n).transpose()).squaredNorm();
       if (!at_start && alpha > 0) phi += 0.5 * alpha / h * inertia[n].mass_kg * dx.squaredNorm();
       if (!state->is_frame(n)) continue;
-      const Eigen::Vector3d theta = q.segment<3>(o + 3);
-      const Eigen::Vector3d p = theta - h * w0.row(n).transpose();
+      const Eigen::Vector3d rot = q.segment<3>(o + 3);
+      const Eigen::Vector3d p = rot - h * w0.row(n).transpose();
       phi += 0.5 / (h * h) * p.dot(inertia_n[n] * p);
-      if (!at_start && alpha > 0) phi += 0.5 * alpha / h * theta.dot(inertia_n[n] * theta);
+      if (!at_start && alpha > 0) phi += 0.5 * alpha / h * rot.dot(inertia_n[n] * rot);
     }
     if (!at_start && beta > 0) {
       const Eigen::Map<const SparseMatrixd> k0(system_.num_dofs(), system_.num_dofs(),
@@ -339,9 +351,9 @@ GeneralisedSummary GeneralisedImplicitEuler::SubStep(
           inertia[n].mass_kg * ((dx - h * v0.row(n).transpose()) / (h * h) + (alpha / h) * dx);
       if (damping.size()) gradient_.segment<3>(o) += damping.segment<3>(o);
       if (!state->is_frame(n)) continue;
-      const Eigen::Vector3d theta = q.segment<3>(o + 3);
+      const Eigen::Vector3d rot = q.segment<3>(o + 3);
       Eigen::Vector3d r =
-          inertia_n[n] * ((theta - h * w0.row(n).transpose()) / (h * h) + (alpha / h) * theta);
+          inertia_n[n] * ((rot - h * w0.row(n).transpose()) / (h * h) + (alpha / h) * rot);
       if (damping.size()) r += damping.segment<3>(o + 3);
       gradient_.segment<3>(o + 3) += jinv[n].transpose() * r;
     }
@@ -402,11 +414,12 @@ GeneralisedSummary GeneralisedImplicitEuler::SubStep(
          summary.last_increment_rad > options_.newton_tolerance_rad)) {
       Configuration line_start;
       line_start.Save(*state);
+      theta_line = theta;
       const double phi0 = potential(it == 0);  // terms updated at the line start (above)
       double step = 1.0;
       for (int cut = 0;; ++cut) {
         line_start.Restore(state);
-        state->ApplyIncrement(step * solution_);
+        advance(step, solution_);
         UpdateAll(*state, terms);
         const double phi = potential(false);
         if (phi <= phi0 + 1e-4 * step * slope + 1e-10 * std::abs(phi0) ||
@@ -416,7 +429,8 @@ GeneralisedSummary GeneralisedImplicitEuler::SubStep(
         ++summary.line_search_cuts;
       }
     } else {
-      state->ApplyIncrement(solution_);
+      theta_line = theta;
+      advance(1.0, solution_);
     }
     summary.assembly_ms += Ms(t);
     if (!one_step && summary.last_increment_mm < options_.newton_tolerance_mm &&
@@ -439,22 +453,26 @@ GeneralisedSummary GeneralisedImplicitEuler::SubStep(
       w.row(n).setZero();
       continue;
     }
-    const Eigen::Vector3d theta = q.segment<3>(o + 3);
     const Eigen::Matrix3d& R = state->rotation(n);
-    const Eigen::Vector3d momentum_body = R.transpose() * (inertia_n[n] * theta / h);
-    const Eigen::Vector3d step_body = R.transpose() * theta / h;
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-    eig.computeDirect(inertia[n].body_inertia);
-    const double largest = eig.eigenvalues().cwiseAbs().maxCoeff();
+    const Eigen::Vector3d momentum_body = R.transpose() * (inertia_n[n] * theta[n] / h);
+    const Eigen::Vector3d step_body = R.transpose() * theta[n] / h;
+    const Eigen::Matrix3d& body = inertia[n].body_inertia;
     Eigen::Vector3d omega_body = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k) {
-      const Eigen::Vector3d u = eig.eigenvectors().col(k);
-      const double lambda = eig.eigenvalues()[k];
-      // Body axes whose inertia is zero to rounding carry no momentum.
-      if (lambda > 1e-12 * largest && largest > 0)
-        omega_body += (u.dot(momentum_body) / lambda) * u;
-      else
-        omega_body += u.dot(step_body) * u;
+    const double trace = body.trace();
+    if (trace > 0 && body.determinant() > 1e-9 * trace * trace * trace) {
+      omega_body = body.inverse() * momentum_body;  // the common case: closed-form 3x3 inverse
+    } else {
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(body);
+      const double largest = eig.eigenvalues().cwiseAbs().maxCoeff();
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Vector3d u = eig.eigenvectors().col(k);
+        const double lambda = eig.eigenvalues()[k];
+        // Body axes whose inertia is zero to rounding carry no momentum.
+        if (lambda > 1e-12 * largest && largest > 0)
+          omega_body += (u.dot(momentum_body) / lambda) * u;
+        else
+          omega_body += u.dot(step_body) * u;
+      }
     }
     w.row(n) = (R * omega_body).transpose();
   }

@@ -1,10 +1,10 @@
 #include "mechanics/generalised_terms.h"
 
+#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <utility>
 
 #include "core/error.h"
-#include "mechanics/generalised_system.h"
 #include "mechanics/so3.h"
 
 namespace arreg::mechanics {
@@ -133,10 +133,18 @@ Eigen::MatrixXd AnchorJacobian(const GeneralisedState& state, const SpringAnchor
   return j;
 }
 
-// The second-order part of E along phi on an anchor's rotation: sym(d s^T) - (s . d) I.
-Eigen::Matrix3d RotationCurvature(const Eigen::Vector3d& s, const Eigen::Vector3d& d) {
+// The second-order part of E along phi on an anchor's rotation, k (sym(d s^T) - (s . d) I),
+// with its negative eigenvalues set to zero when `project` (see the header).
+Eigen::Matrix3d RotationCurvature(const Eigen::Vector3d& s, const Eigen::Vector3d& d, double k,
+                                  bool project) {
   const Eigen::Matrix3d ds = d * s.transpose();
-  return 0.5 * (ds + ds.transpose()) - s.dot(d) * Eigen::Matrix3d::Identity();
+  const Eigen::Matrix3d g =
+      k * (0.5 * (ds + ds.transpose()) - s.dot(d) * Eigen::Matrix3d::Identity());
+  if (!project) return g;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(g);
+  if (eig.eigenvalues().minCoeff() >= 0) return g;
+  return eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() *
+         eig.eigenvectors().transpose();
 }
 
 }  // namespace
@@ -243,15 +251,12 @@ void ZeroLengthSpringTerm::AddHessian(const GeneralisedState& state, double scal
       for (int j = 0; j < count; ++j)
         h.block(offset[i], offset[j], jac[i].cols(), jac[j].cols()) =
             k * jac[i].transpose() * jac[j];
-    bool curved = false;
     for (int i = 0; i < count; ++i) {
       if (!state.is_frame(anchors[i]->node)) continue;
       const Eigen::Vector3d sp = SpatialOffset(state, *anchors[i]);
-      if (sp.squaredNorm() == 0) continue;
-      h.block<3, 3>(offset[i] + 3, offset[i] + 3) += k * RotationCurvature(sp, signs[i] * d);
-      curved = true;
+      h.block<3, 3>(offset[i] + 3, offset[i] + 3) +=
+          RotationCurvature(sp, signs[i] * d, k, project_psd_);
     }
-    if (project_psd_ && curved) ProjectToPsd(h);
     for (int i = 0; i < count; ++i)
       for (int j = i; j < count; ++j)
         sink->AddBlock(anchors[i]->node, anchors[j]->node,

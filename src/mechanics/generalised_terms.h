@@ -77,11 +77,13 @@ struct SpringAnchor {
 // tet vertex node (coupling models), a feature pulling a shell. Ids are stable
 // (removed springs stay as inactive entries).
 // Derivatives at phi = 0 with s = R r: dp = dx - s x phi + 1/2 phi x (phi x s);
-// the Hessian is k J^T J plus, on each rotation block, k (sym(d s^T) - (s . d) I)
-// with d = p_A - p_B (and -d for B); that part is indefinite unless d is
-// antiparallel to s, so with project_psd (default) a spring's block over its
-// two nodes is projected to PSD (ProjectToPsd: unchanged where it is PSD
-// already, as at a stable equilibrium).
+// the Hessian is k J^T J (J = [I, -[s]x] per anchor) plus, on each anchor's
+// rotation block, G = k (sym(d s^T) - (s . d) I) with d = p_A - p_B (-d for B).
+// G is indefinite unless d is antiparallel to s (a hanging pendulum at rest) or
+// zero; with project_psd (default) its negative eigenvalues are set to zero, so
+// the spring's Hessian is positive semi-definite, the translation rows stay
+// exact (a spring on a node with fixed rotation is solved in one Newton step) and
+// the stable equilibria keep the exact Hessian.
 class ZeroLengthSpringTerm : public GeneralisedEnergyTerm {
  public:
   struct Spring {
