@@ -123,8 +123,8 @@ struct CutDetectorOptions {
   // lone point, see grow_at_extremities_only): a point that grows a polyline is corroborated by
   // the cut point next to it, behind which the model may be cut already (pairs from the cut
   // part to the whole part ahead are one-sided by construction), and a lip on the fixed side
-  // of an object barely moves (band-cut-s: a growth cluster next to the first point was
-  // rejected and the cut was found 6 frames later). The bound 1/2 is the one reject_lone_features
+  // of an object barely moves (asked of growths, the test delays a cut along a fixed edge by
+  // several frames). The bound 1/2 is the one reject_lone_features
   // applies to a single feature (partners less than half as far off), extended to several features
   // on the same side. Not in the thesis; only with cluster_outliers; 0 disables. Default 0.5.
   double min_opening_balance = 0.5;

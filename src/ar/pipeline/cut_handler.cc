@@ -284,9 +284,9 @@ CutHandler::Plan CutHandler::PlanCut(const std::vector<Eigen::Vector3d>& polylin
     if (cut.status == cutting::CutStatus::kCut) break;
     // S splits the model at every depth: the current configuration, which cuts only this
     // frame's strip, would leave the crack sewn where the strips meet and keep the pieces
-    // joined there, not because the cut stops short (band-stretch with ~440 features: a
-    // polyline along the stem's junction cut in the current configuration once the rest one
-    // refused it). Only a cut the remesher refuses, or a sliver, goes on to it.
+    // joined there, not because the cut stops short (a false polyline along a stretched band's
+    // junction with its stem, refused in the rest configuration, would be cut there). Only a
+    // cut the remesher refuses, or a sliver, goes on to it.
     if (rest && plan.splits) break;
   }
   return plan;
