@@ -34,11 +34,11 @@
 namespace arreg::mechanics {
 
 struct ShellMaterial {
-  double youngs_modulus_kpa = 3.0;            // kPa (= mN/mm^2); > 0
-  double poisson_ratio = 0.45;                // [0, 0.5)
-  double thickness_mm = 1.0;                  // > 0
-  double density_kg_per_mm3 = 1.0e-6;         // kg/mm^3 (water: 1e-6); >= 0
-  void Check() const;                         // throws arreg::Error naming the field
+  double youngs_modulus_kpa = 3.0;     // kPa (= mN/mm^2); > 0
+  double poisson_ratio = 0.45;         // [0, 0.5)
+  double thickness_mm = 1.0;           // > 0
+  double density_kg_per_mm3 = 1.0e-6;  // kg/mm^3 (water: 1e-6); >= 0
+  void Check() const;                  // throws arreg::Error naming the field
 };
 
 enum class ShellHessian {
@@ -125,12 +125,12 @@ class BezierShell : public GeneralisedEnergyTerm, public InertiaSource {
   // Internal per-element data (public so the implementation's helpers see it).
   struct Element {
     Eigen::Vector3i nodes;
-    Eigen::Matrix3d rest_frame;                 // R_e0 (columns: element axes in world)
-    Eigen::Matrix2d rest_edges_inverse;         // E0^-1, E0 = rest local [x2-x1, x3-x1]
-    Eigen::Matrix3d corner_link[3];             // C_i = R_i0^T R_e0
-    Eigen::Vector3d attachment[6];              // a_j (rest local), edge points p4..p9
-    Eigen::Matrix<double, 10, 3> rest_local;    // rest control points, local, centroid origin
-    Eigen::Matrix<double, 12, 12> k;            // stiffness in xi
+    Eigen::Matrix3d rest_frame;               // R_e0 (columns: element axes in world)
+    Eigen::Matrix2d rest_edges_inverse;       // E0^-1, E0 = rest local [x2-x1, x3-x1]
+    Eigen::Matrix3d corner_link[3];           // C_i = R_i0^T R_e0
+    Eigen::Vector3d attachment[6];            // a_j (rest local), edge points p4..p9
+    Eigen::Matrix<double, 10, 3> rest_local;  // rest control points, local, centroid origin
+    Eigen::Matrix<double, 12, 12> k;          // stiffness in xi
     double area = 0;
     Eigen::Matrix<double, 3, 3> lumped_inertia[3];  // rest-local rotational inertia per corner
     double lumped_mass[3] = {0, 0, 0};
@@ -139,6 +139,38 @@ class BezierShell : public GeneralisedEnergyTerm, public InertiaSource {
  private:
   BezierShellOptions options_;
   std::vector<Element> elements_;
+};
+
+// Supports and loads that node-level fixed masks cannot express, for shell
+// problems: one translation or rotation component of a node held along a unit
+// direction (symmetry planes, diaphragms), as a stiff penalty
+//   1/2 k (a . (x - x_rest))^2,  1/2 k (a . Log(R R_rest^T))^2,
+// and dead point forces -f . x. The rotation penalty's Hessian is its
+// Gauss-Newton part k J_l^-T a a^T J_l^-1 (positive semi-definite; exact where
+// the held component is zero). With k ~1e6 times the structure's stiffness the
+// held component is zero to ~1e-6 of the free motion.
+class ShellSupportTerm : public GeneralisedEnergyTerm {
+ public:
+  std::string name() const override { return "shell_supports"; }
+  // Throw arreg::Error for a zero direction or a non-positive stiffness.
+  void HoldTranslation(int node, const Eigen::Vector3d& direction, double stiffness_n_per_m);
+  void HoldRotation(int node, const Eigen::Vector3d& direction, double stiffness_nmm_per_rad2);
+  void AddForce(int node, const Eigen::Vector3d& force_mn);
+
+  void AppendStencils(std::vector<std::vector<int>>* stencils) const override;
+  double Value(const GeneralisedState& state) const override;
+  void AddGradient(const GeneralisedState& state, Eigen::VectorXd* gradient) const override;
+  void AddHessian(const GeneralisedState& state, double scale, HessianSink* sink) const override;
+
+ private:
+  struct Hold {
+    int node;
+    bool rotation;
+    Eigen::Vector3d direction;
+    double stiffness;
+  };
+  std::vector<Hold> holds_;
+  std::vector<std::pair<int, Eigen::Vector3d>> forces_;
 };
 
 }  // namespace arreg::mechanics
