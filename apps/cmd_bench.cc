@@ -22,6 +22,8 @@ const Bench kBenches[] = {
      "cut detection and registration accuracy over the scene manifest (dev/test splits)"},
     {"cutting", RunBenchCutting, "beam cut: ours vs Bielser (growth, conditioning), event time"},
     {"detection", RunBenchDetection, "cut detection per frame (700 features, ~9,000 pairs)"},
+    {"frames", RunBenchFrames,
+     "6-DOF frame model: implicit step of 72 frames / 408 samples (ms/step), cost growth"},
     {"mechanics", RunBenchMechanics,
      "implicit corotational step driven by springs (ms/step, phases)"},
     {"pipeline", RunBenchPipeline,

@@ -17,6 +17,7 @@ int RunBenchAccuracy(int argc, char** argv);
 int RunBenchCutting(int argc, char** argv);
 int RunBenchDetection(int argc, char** argv);
 int RunBenchMechanics(int argc, char** argv);
+int RunBenchFrames(int argc, char** argv);
 int RunBenchPipeline(int argc, char** argv);
 int RunBenchTracking(int argc, char** argv);
 

@@ -13,22 +13,19 @@ namespace {
 
 using internal::Concat;
 
-// Clamps the negative eigenvalues of a symmetric 3x3 matrix to zero.
+// Clamps the negative eigenvalues of a symmetric 3x3 matrix to zero. A matrix
+// whose principal minors are all non-negative is PSD already (no eigensolve).
 Eigen::Matrix3d PositivePart(const Eigen::Matrix3d& m) {
+  const double m01 = m(0, 0) * m(1, 1) - m(0, 1) * m(0, 1);
+  const double m02 = m(0, 0) * m(2, 2) - m(0, 2) * m(0, 2);
+  const double m12 = m(1, 1) * m(2, 2) - m(1, 2) * m(1, 2);
+  if (m(0, 0) >= 0 && m(1, 1) >= 0 && m(2, 2) >= 0 && m01 >= 0 && m02 >= 0 && m12 >= 0 &&
+      m.determinant() >= 0)
+    return m;
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
   eig.computeDirect(m);
   const Eigen::Vector3d values = eig.eigenvalues().cwiseMax(0.0);
   return eig.eigenvectors() * values.asDiagonal() * eig.eigenvectors().transpose();
-}
-
-// Symmetric part of a 3x3 matrix in Mandel notation (a : b = mandel(a) . mandel(b)
-// for symmetric a, b).
-Eigen::Matrix<double, 6, 1> MandelSym(const Eigen::Matrix3d& g) {
-  const double r = std::sqrt(0.5);
-  Eigen::Matrix<double, 6, 1> v;
-  v << g(0, 0), g(1, 1), g(2, 2), r * (g(0, 1) + g(1, 0)), r * (g(0, 2) + g(2, 0)),
-      r * (g(1, 2) + g(2, 1));
-  return v;
 }
 
 // Second-order rotation block of f(phi) = P : (Exp(phi) B) at phi = 0:
@@ -153,58 +150,71 @@ void FrameModel::AddGradient(const GeneralisedState& state, Eigen::VectorXd* gra
 }
 
 void FrameModel::AddHessian(const GeneralisedState& state, double scale, HessianSink* sink) const {
-  int max_pairs = 0;
-  for (int s = 0; s < num_samples(); ++s)
-    max_pairs = std::max(max_pairs, sample_begin_[s + 1] - sample_begin_[s]);
-  const int max_dofs = 6 * max_pairs;
-  // Per-sample scratch: dF/dq_j as 3x3 columns (vec), F^T dF/dq_j in Mandel
-  // form, its trace, and dF/dq_j S.
-  Eigen::MatrixXd d(9, max_dofs), ds(9, max_dofs), mandel(6, max_dofs), hessian;
-  Eigen::VectorXd trace(max_dofs);
-  std::vector<Eigen::Matrix3d> b(max_pairs);
+  using Matrix9d = Eigen::Matrix<double, 9, 9>;
+  using Matrix96d = Eigen::Matrix<double, 9, 6>;
+  // J_j = d vec(F) / d(x_j, phi_j) (9 x 6, vec column-major) per frame of the
+  // sample, and H_F = d2 psi / dF2 (9 x 9); the (i, j) block is J_i^T H_F J_j.
+  std::vector<Matrix96d> jacobian, product;
+  std::vector<Eigen::Matrix3d> b;
+  const double r = std::sqrt(0.5);
   for (int s = 0; s < num_samples(); ++s) {
-    const int begin = sample_begin_[s], k = sample_begin_[s + 1] - begin, n = 6 * k;
+    const int begin = sample_begin_[s], k = sample_begin_[s + 1] - begin;
     const Eigen::Matrix3d f = DeformationGradient(state, s);
     Eigen::Matrix3d stress, pk1;
     Stress(f, &stress, &pk1);
+    // Material: 2 mu sym(F^T dF) : sym(F^T dF) + lambda (F : dF)^2 (PSD), via
+    // the Mandel rows of vec(dF) -> sym(F^T dF).
+    Eigen::Matrix<double, 6, 9> mandel = Eigen::Matrix<double, 6, 9>::Zero();
+    for (int row = 0; row < 3; ++row) {
+      for (int p = 0; p < 3; ++p) mandel(p, row + 3 * p) = f(row, p);
+      // (p, q) = (0, 1), (0, 2), (1, 2): sqrt(1/2) (F_rp dF_rq + F_rq dF_rp).
+      const int pairs[3][2] = {{0, 1}, {0, 2}, {1, 2}};
+      for (int m = 0; m < 3; ++m) {
+        const int p = pairs[m][0], q = pairs[m][1];
+        mandel(3 + m, row + 3 * q) += r * f(row, p);
+        mandel(3 + m, row + 3 * p) += r * f(row, q);
+      }
+    }
+    const Eigen::Map<const Eigen::Matrix<double, 9, 1>> f_vec(f.data());
+    // Small fixed sizes: coefficient-wise (lazy) products beat Eigen's GEMM path.
+    Matrix9d hf = 2 * mu_ * mandel.transpose().lazyProduct(mandel);
+    hf.noalias() += lambda_ * f_vec * f_vec.transpose();
+    // Geometric: S : sym(dF^T dF) = vec(dF)^T (S kron I3) vec(dF); PSD when S is.
     const Eigen::Matrix3d geometric_stress =
         options_.project_hessian ? PositivePart(stress) : stress;
+    for (int c = 0; c < 3; ++c)
+      for (int d = 0; d < 3; ++d)
+        hf.block<3, 3>(3 * c, 3 * d).diagonal().array() += geometric_stress(c, d);
+    jacobian.resize(k);
+    product.resize(k);
+    b.resize(k);
     for (int j = 0; j < k; ++j) {
       const int p = begin + j;
       b[j] = state.rotation(pair_node_[p]) * pair_c_[p];
+      Matrix96d& jac = jacobian[j];
+      jac.setZero();
       for (int a = 0; a < 3; ++a) {
-        Eigen::Matrix3d dx = Eigen::Matrix3d::Zero();
-        dx.row(a) = pair_gradient_[p].transpose();
+        // x_a: dF = e_a g^T.
+        for (int c = 0; c < 3; ++c) jac(a + 3 * c, a) = pair_gradient_[p][c];
+        // phi_a: dF = [e_a]x B.
         const Eigen::Matrix3d dphi = Skew(Eigen::Vector3d::Unit(a)) * b[j];
-        for (int c = 0; c < 2; ++c) {
-          const Eigen::Matrix3d& df = c == 0 ? dx : dphi;
-          const int col = 6 * j + 3 * c + a;
-          const Eigen::Matrix3d g = f.transpose() * df;
-          d.col(col) = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(df.data());
-          const Eigen::Matrix3d dfs = df * geometric_stress;
-          ds.col(col) = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(dfs.data());
-          mandel.col(col) = MandelSym(g);
-          trace[col] = g.trace();
-        }
+        jac.col(3 + a) = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(dphi.data());
       }
-    }
-    // Material: 2 mu sym(F^T dF_j) : sym(F^T dF_k) + lambda tr tr (PSD).
-    // Geometric: S : sym(dF_j^T dF_k) = dF_j : dF_k S (PSD when S is).
-    const auto dl = d.leftCols(n), dsl = ds.leftCols(n), ml = mandel.leftCols(n);
-    const auto tl = trace.head(n);
-    hessian.noalias() = 2 * mu_ * ml.transpose() * ml;
-    hessian.noalias() += lambda_ * tl * tl.transpose();
-    hessian.noalias() += dl.transpose() * dsl;
-    for (int j = 0; j < k; ++j) {
-      const Eigen::Matrix3d curvature = RotationCurvature(b[j] * pk1.transpose());
-      hessian.block<3, 3>(6 * j + 3, 6 * j + 3) +=
-          options_.project_hessian ? PositivePart(curvature) : curvature;
+      product[j].noalias() = hf.lazyProduct(jac);
     }
     const double factor = scale * volume_[s];
-    for (int j = 0; j < k; ++j)
-      for (int m = j; m < k; ++m)
-        sink->AddBlock(pair_node_[begin + j], pair_node_[begin + m],
-                       hessian.block(6 * j, 6 * m, 6, 6), factor);
+    Eigen::Matrix<double, 6, 6> block;
+    for (int i = 0; i < k; ++i)
+      for (int j = i; j < k; ++j) {
+        block.noalias() = jacobian[i].transpose().lazyProduct(product[j]);
+        if (i == j) {
+          // Second-order part of Exp: P : ((S_a S_b + S_b S_a) / 2) B.
+          const Eigen::Matrix3d curvature = RotationCurvature(b[i] * pk1.transpose());
+          block.bottomRightCorner<3, 3>() +=
+              options_.project_hessian ? PositivePart(curvature) : curvature;
+        }
+        sink->AddBlock(pair_node_[begin + i], pair_node_[begin + j], block, factor);
+      }
   }
 }
 
