@@ -124,27 +124,40 @@ Eigen::Vector3d SpatialOffset(const GeneralisedState& state, const SpringAnchor&
              : anchor.point_mm;
 }
 
-// d p / d(x, phi) of an anchor on its node (3 x dofs): [I, -[s]x].
-Eigen::MatrixXd AnchorJacobian(const GeneralisedState& state, const SpringAnchor& anchor) {
-  const int dofs = state.node_dofs(anchor.node);
-  Eigen::MatrixXd j(3, dofs);
+// d p / d(x, phi) of an anchor on its node: [I, -[s]x] (the first 3 columns on a point node).
+Eigen::Matrix<double, 3, 6> AnchorJacobian(const GeneralisedState& state,
+                                           const SpringAnchor& anchor) {
+  Eigen::Matrix<double, 3, 6> j;
   j.leftCols<3>().setIdentity();
-  if (dofs == 6) j.rightCols<3>() = -Skew(SpatialOffset(state, anchor));
+  j.rightCols<3>() = state.is_frame(anchor.node)
+                         ? Eigen::Matrix3d(-Skew(SpatialOffset(state, anchor)))
+                         : Eigen::Matrix3d::Zero();
   return j;
 }
 
-// The second-order part of E along phi on an anchor's rotation, k (sym(d s^T) - (s . d) I),
-// with its negative eigenvalues set to zero when `project` (see the header).
+// The second-order part of E along phi on an anchor's rotation, G = k (sym(d s^T) - (s . d) I),
+// with its negative eigenvalues set to zero when `project` (see the header). In closed form:
+// with a = |d||s| and c = s . d, G has the eigenvalues k (a - c)/2 >= 0 along d/|d| + s/|s|,
+// -k (a + c)/2 <= 0 along d/|d| - s/|s| and -k c along d x s; the eigen-solver is only needed
+// where d and s point the same way (the last two directions degenerate).
 Eigen::Matrix3d RotationCurvature(const Eigen::Vector3d& s, const Eigen::Vector3d& d, double k,
                                   bool project) {
+  const double c = s.dot(d);
   const Eigen::Matrix3d ds = d * s.transpose();
-  const Eigen::Matrix3d g =
-      k * (0.5 * (ds + ds.transpose()) - s.dot(d) * Eigen::Matrix3d::Identity());
-  if (!project) return g;
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(g);
-  if (eig.eigenvalues().minCoeff() >= 0) return g;
-  return eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() *
-         eig.eigenvectors().transpose();
+  Eigen::Matrix3d g = k * (0.5 * (ds + ds.transpose()) - c * Eigen::Matrix3d::Identity());
+  const double a = d.norm() * s.norm();
+  if (!project || a == 0) return g;
+  const Eigen::Vector3d n = d.cross(s);
+  if (c > 0 && n.squaredNorm() <= 1e-20 * a * a) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(g);
+    return eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() *
+           eig.eigenvectors().transpose();
+  }
+  const Eigen::Vector3d u = d / d.norm() - s / s.norm();
+  const double negative = -0.5 * k * (a + c);
+  if (negative < 0 && u.squaredNorm() > 0) g -= (negative / u.squaredNorm()) * u * u.transpose();
+  if (c > 0) g += (k * c / n.squaredNorm()) * n * n.transpose();
+  return g;
 }
 
 }  // namespace
@@ -240,27 +253,23 @@ void ZeroLengthSpringTerm::AddHessian(const GeneralisedState& state, double scal
     int count = 0;
     if (s.a.node >= 0) anchors[count] = &s.a, signs[count++] = 1.0;
     if (s.b.node >= 0) anchors[count] = &s.b, signs[count++] = -1.0;
-    Eigen::MatrixXd jac[2];
-    int offset[3] = {0, 0, 0};
+    // Fixed-size blocks (no allocation per spring): dofs x dofs of each pair of anchors.
+    Eigen::Matrix<double, 3, 6> jac[2];
+    int dofs[2];
     for (int i = 0; i < count; ++i) {
       jac[i] = signs[i] * AnchorJacobian(state, *anchors[i]);
-      offset[i + 1] = offset[i] + static_cast<int>(jac[i].cols());
+      dofs[i] = state.node_dofs(anchors[i]->node);
     }
-    Eigen::MatrixXd h(offset[count], offset[count]);
+    Eigen::Matrix<double, 6, 6> block;
     for (int i = 0; i < count; ++i)
-      for (int j = 0; j < count; ++j)
-        h.block(offset[i], offset[j], jac[i].cols(), jac[j].cols()) =
-            k * jac[i].transpose() * jac[j];
-    for (int i = 0; i < count; ++i) {
-      if (!state.is_frame(anchors[i]->node)) continue;
-      const Eigen::Vector3d sp = SpatialOffset(state, *anchors[i]);
-      h.block<3, 3>(offset[i] + 3, offset[i] + 3) +=
-          RotationCurvature(sp, signs[i] * d, k, project_psd_);
-    }
-    for (int i = 0; i < count; ++i)
-      for (int j = i; j < count; ++j)
-        sink->AddBlock(anchors[i]->node, anchors[j]->node,
-                       h.block(offset[i], offset[j], jac[i].cols(), jac[j].cols()), scale);
+      for (int j = i; j < count; ++j) {
+        block.noalias() = k * jac[i].transpose() * jac[j];
+        if (i == j && dofs[i] == 6)
+          block.bottomRightCorner<3, 3>() +=
+              RotationCurvature(SpatialOffset(state, *anchors[i]), signs[i] * d, k, project_psd_);
+        sink->AddBlock(anchors[i]->node, anchors[j]->node, block.topLeftCorner(dofs[i], dofs[j]),
+                       scale);
+      }
   }
 }
 

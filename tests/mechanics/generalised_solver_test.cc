@@ -226,6 +226,38 @@ TEST(GeneralisedTerms, ProjectedSpringHessianIsPsdAndExactWherePsd) {
   EXPECT_LT((HessianAt(&a, s) - HessianAt(&b, s)).cwiseAbs().maxCoeff(), 1e-12);
 }
 
+// The projection of the rotational curvature is the eigen-clamp (ProjectToPsd) of it, also
+// where d and s are parallel or antiparallel.
+TEST(GeneralisedTerms, ProjectedSpringCurvatureIsItsNearestPsdMatrix) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  const double k = 3.0;
+  for (int trial = 0; trial < 40; ++trial) {
+    const Eigen::Vector3d offset(u(rng), u(rng), u(rng));
+    GeneralisedState s;
+    const int f = s.AddFrameNode({0, 0, 0}, AxisAngle({u(rng), u(rng), u(rng)}, 150 * u(rng)));
+    const Eigen::Vector3d arm = s.rotation(f) * offset;
+    // Targets in general position, and along the arm (d parallel / antiparallel to s).
+    Eigen::Vector3d target(u(rng), u(rng), u(rng));
+    if (trial % 4 == 1) target = 3.0 * arm;
+    if (trial % 4 == 2) target = -2.0 * arm;
+    ZeroLengthSpringTerm exact(false), projected(true);
+    for (ZeroLengthSpringTerm* t : {&exact, &projected})
+      t->Add(SpringAnchor::AtOffset(f, offset), SpringAnchor::Fixed(target), k);
+    const Eigen::MatrixXd he = HessianAt(&exact, s), hp = HessianAt(&projected, s);
+    // G = exact rotation block - k [s]x^T [s]x.
+    const Eigen::Matrix3d sx = Skew(arm);
+    Eigen::MatrixXd g = he.bottomRightCorner<3, 3>() - k * sx.transpose() * sx;
+    const Eigen::Matrix3d g_exact = g;
+    ProjectToPsd(g);
+    EXPECT_LT((hp.bottomRightCorner<3, 3>() - he.bottomRightCorner<3, 3>() - (g - g_exact))
+                  .cwiseAbs()
+                  .maxCoeff(),
+              1e-12 * std::max(1.0, he.norm()))
+        << "trial " << trial;
+  }
+}
+
 TEST(GeneralisedTerms, GravityGradientMatchesFiniteDifferences) {
   MixedScene scene;
   std::vector<NodeInertia> inertia(scene.state.num_nodes());
