@@ -326,9 +326,13 @@ GeneralisedSummary GeneralisedImplicitEuler::SubStep(
   };
 
   summary.assembly_ms += Ms(t);
+  // After a line search the terms are updated at the point it accepted, and Phi there is
+  // known: the next Newton iteration starts from both.
+  bool terms_current = false;
+  double phi_current = 0;
   for (int it = 0; it < max_it; ++it) {
     t = Clock::now();
-    UpdateAll(*state, terms);
+    if (!terms_current) UpdateAll(*state, terms);
     // grad Phi: grad E + inertia + damping (rotation rows through J_l^-T).
     GradientOf(*state, terms, &gradient_);
     if (it > 0) {
@@ -415,22 +419,25 @@ GeneralisedSummary GeneralisedImplicitEuler::SubStep(
       Configuration line_start;
       line_start.Save(*state);
       theta_line = theta;
-      const double phi0 = potential(it == 0);  // terms updated at the line start (above)
+      // The terms are updated at the line start (above, or by the last line search).
+      const double phi0 = terms_current ? phi_current : potential(it == 0);
       double step = 1.0;
       for (int cut = 0;; ++cut) {
         line_start.Restore(state);
         advance(step, solution_);
         UpdateAll(*state, terms);
-        const double phi = potential(false);
-        if (phi <= phi0 + 1e-4 * step * slope + 1e-10 * std::abs(phi0) ||
+        phi_current = potential(false);
+        if (phi_current <= phi0 + 1e-4 * step * slope + 1e-10 * std::abs(phi0) ||
             cut == kStepLineSearchCuts)
           break;
         step *= 0.5;
         ++summary.line_search_cuts;
       }
+      terms_current = true;
     } else {
       theta_line = theta;
       advance(1.0, solution_);
+      terms_current = false;
     }
     summary.assembly_ms += Ms(t);
     if (!one_step && summary.last_increment_mm < options_.newton_tolerance_mm &&
