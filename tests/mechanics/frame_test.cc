@@ -10,6 +10,7 @@
 
 #include "core/error.h"
 #include "core/mesh_generators.h"
+#include "dense_hessian_sink.h"
 #include "mechanics/frame_model.h"
 #include "mechanics/generalised_solver.h"
 #include "mechanics/so3.h"
@@ -20,25 +21,6 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-// Dense assembly of the blocks a term hands to its sink (the transpose of an
-// off-diagonal block is added as the contract says).
-class DenseSink : public HessianSink {
- public:
-  explicit DenseSink(const GeneralisedState& state)
-      : state_(state), matrix_(Eigen::MatrixXd::Zero(state.num_dofs(), state.num_dofs())) {}
-  void AddBlock(int a, int b, const Eigen::Ref<const Eigen::MatrixXd>& block,
-                double scale) override {
-    const int oa = state_.dof_offset(a), ob = state_.dof_offset(b);
-    matrix_.block(oa, ob, block.rows(), block.cols()) += scale * block;
-    if (a != b) matrix_.block(ob, oa, block.cols(), block.rows()) += scale * block.transpose();
-  }
-  const Eigen::MatrixXd& matrix() const { return matrix_; }
-
- private:
-  const GeneralisedState& state_;
-  Eigen::MatrixXd matrix_;
-};
-
 Eigen::VectorXd Gradient(const GeneralisedEnergyTerm& term, const GeneralisedState& state) {
   Eigen::VectorXd g = Eigen::VectorXd::Zero(state.num_dofs());
   term.AddGradient(state, &g);
@@ -46,7 +28,7 @@ Eigen::VectorXd Gradient(const GeneralisedEnergyTerm& term, const GeneralisedSta
 }
 
 Eigen::MatrixXd Hessian(const GeneralisedEnergyTerm& term, const GeneralisedState& state) {
-  DenseSink sink(state);
+  testing::DenseHessianSink sink(state);
   term.AddHessian(state, 1.0, &sink);
   return sink.matrix();
 }
