@@ -378,7 +378,7 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_DOUBLE_EQ(o.render.organ_opacity, 0.5);
   EXPECT_TRUE(o.render.wireframe);
   EXPECT_EQ(o.tracking.max_features, 500);
-  // Session 17: weaker points fill a weakly textured organ up to 200 features.
+  // weaker points fill a weakly textured organ up to 200 features.
   EXPECT_EQ(o.tracking.min_features, 200);
   EXPECT_DOUBLE_EQ(o.tracking.min_hessian_threshold, 0.5);
   scene.tracking = {{"min_features", 0}, {"min_hessian_threshold", 2.0}};
@@ -389,7 +389,7 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   scene.tracking = {{"min_hessian_threshold", -1.0}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
   scene.tracking = nlohmann::json::object();
-  // The cutting section's keys of session 6 are read and checked.
+  // The cutting section's keys are read and checked.
   EXPECT_TRUE(o.cutting.keep_connected);
   EXPECT_DOUBLE_EQ(o.cutting.detector.bridge_radius_factor, 2.0);
   scene.cutting = {{"keep_connected", false},
@@ -403,43 +403,43 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
   scene.cutting = {{"keep_connected", 1.5}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
-  // Session 17: the first event's depth foresees the polyline reaching the outline.
+  // the first event's depth foresees the polyline reaching the outline.
   EXPECT_TRUE(o.cutting.first_event_foresight);
   scene.cutting = {{"first_event_foresight", false}};
   EXPECT_FALSE(ReadPipelineOptions(scene).cutting.first_event_foresight);
   scene.cutting = {{"first_event_foresight", 3}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
-  // Session 18: segments that would split the model are refused.
+  // segments that would split the model are refused.
   EXPECT_TRUE(o.cutting.refuse_splitting_segments);
   scene.cutting = {{"refuse_splitting_segments", false}};
   EXPECT_FALSE(ReadPipelineOptions(scene).cutting.refuse_splitting_segments);
   scene.cutting = {{"refuse_splitting_segments", "yes"}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
-  // Session 19: a star does not start a polyline.
+  // a star does not start a polyline.
   EXPECT_TRUE(o.cutting.detector.reject_star_starts);
   scene.cutting = {{"reject_star_starts", false}};
   EXPECT_FALSE(ReadPipelineOptions(scene).cutting.detector.reject_star_starts);
   scene.cutting = {{"reject_star_starts", 1}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
-  // Session 20: the outlier floor in pixels.
+  // the outlier floor in pixels.
   EXPECT_EQ(o.cutting.min_outlier_measure_px, 1.0);
   scene.cutting = {{"min_outlier_measure_px", 0.5}};
   EXPECT_EQ(ReadPipelineOptions(scene).cutting.min_outlier_measure_px, 0.5);
   scene.cutting = {{"min_outlier_measure_px", -1}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
-  // Session 20: conservative starts, opt-in.
+  // conservative starts, opt-in.
   EXPECT_FALSE(o.cutting.detector.confirm_starts_with_model_measure);
   scene.cutting = {{"confirm_starts_with_model_measure", true}};
   EXPECT_TRUE(ReadPipelineOptions(scene).cutting.detector.confirm_starts_with_model_measure);
   scene.cutting = {{"confirm_starts_with_model_measure", "no"}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
-  // Session 7: where S is cut.
+  // where S is cut.
   EXPECT_EQ(o.cutting.cut_configuration, "rest");
   scene.cutting = {{"cut_configuration", "current"}};
   EXPECT_EQ(ReadPipelineOptions(scene).cutting.cut_configuration, "current");
   scene.cutting = {{"cut_configuration", "deformed"}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
-  // Session 8: the growth probe.
+  // the growth probe.
   EXPECT_DOUBLE_EQ(o.cutting.detector.probe_length_factor, 2.0);
   EXPECT_DOUBLE_EQ(o.cutting.detector.probe_pair_length_factor, 3.0);
   EXPECT_DOUBLE_EQ(o.cutting.detector.probe_outlier_factor, 12.0);
@@ -455,7 +455,7 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_DOUBLE_EQ(p.cutting.detector.probe_max_lead_factor, 1.5);
   scene.cutting = {{"probe_outlier_factor", -1.0}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
-  // Session 23: the balance bound of a cluster of bridges.
+  // the balance bound of a cluster of bridges.
   EXPECT_DOUBLE_EQ(o.cutting.detector.min_opening_balance_bridges, 1.0 / 3.0);
   scene.cutting = {{"min_opening_balance_bridges", 0.25}};
   EXPECT_DOUBLE_EQ(ReadPipelineOptions(scene).cutting.detector.min_opening_balance_bridges, 0.25);
@@ -474,7 +474,7 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
       -1.0);
   scene.cutting = {{"min_lone_growth_balance", 2.0}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
-  // Session 9: internal structures split and capped, or their crossing triangles deleted.
+  // internal structures split and capped, or their crossing triangles deleted.
   EXPECT_TRUE(o.cutting.internal_caps);
   scene.cutting = {{"internal_caps", false}};
   EXPECT_FALSE(ReadPipelineOptions(scene).cutting.internal_caps);

@@ -204,7 +204,7 @@ TEST(StructureSplit, CurvePieceOfOneEdgeIsSplitAtItsMidpoint) {
 // Where a face of the crack branches off a sheet (three faces on one edge: the cutter unsewed a
 // face tilted across a fold of S, and an element hangs between two sheets), the structure is
 // split along the sheet and not along the branch: the same closed pieces as without the branch,
-// instead of a refusal (kidney-cut seed 6 lost 49 triangles of its structure to that refusal).
+// instead of a refusal (the pipeline then deletes the crossing triangles of the structure).
 TEST(StructureSplit, BranchOffTheCrackIsNotSplitAlong) {
   const Eigen::Vector3d center(20, 15, 15);
   const SurfaceMesh ball = MakeUvSphere(center, 8, 14, 28);
@@ -251,7 +251,7 @@ TEST(StructureSplit, BranchOffTheCrackIsNotSplitAlong) {
 // and both caps met on that edge (the split is made again with the crack moved by 6e-8 mm).
 // All were refused (the pipeline then deleted the crossing triangles); now each is one closed
 // oriented manifold (a pocket: the cracks stop inside) with the structure's volume. A fifth,
-// seed 6's crack at frame 73 with the depth of session 17's first-event foresight, has sheets
+// a kidney crack extruded with the first event's foreseen depth, has sheets
 // that touch in points near the structure: the coincident copies of those vertices crashed
 // CGAL's corefinement (a segmentation fault) until each copy was moved 1e-6 edge lengths
 // towards its own faces.

@@ -799,7 +799,7 @@ TEST(CutDetector, LipsLostFromTheStartAreBridgedIntoACut) {
 // The same tear with its lips lost from the start, but unevenly: within 5 mm of the seam on one
 // side and 15 mm on the other, under a model whose misfit falls off over 8 mm from the seam.
 // Each bridge joins a feature next to the seam to one farther from it, whose target lies less
-// far outward (band-cut-v seed 22: 14-16 mm next to the seam, 4-7 mm 15-25 px farther), so the
+// far outward (on a synthetic V-cut: 14-16 mm next to the seam, 4-7 mm 15-25 px farther), so the
 // clusters' balance falls below min_opening_balance although both lips open. Held to
 // min_opening_balance_bridges, a cluster of bridges starts the polyline by the time the tip is
 // 60 mm along (measured: 39-53); held to min_opening_balance, later (67 and 89 on two seeds) or
@@ -841,7 +841,7 @@ TEST(CutDetector, BridgesAcrossUnevenlyLostLipsStartACut) {
 // 45 mm stretch where the tracker loses every feature within 14 mm of the seam: no pair of C_F
 // and no bridge (at most 2 r_F = 28.8 mm) spans it, so the first point never grows, and the
 // bridges beyond it (lips lost within 10 mm only) lie farther than the growth radius from it
-// (band-cut-v seed 11: a first point at the top edge, then 40 frames of nothing). While the
+// (a V-tear: a first point at the top edge, then 40 frames of nothing). While the
 // polyline is that lone point, a far cluster of n pairs, bridges counted one each, replaces it,
 // as one of n pairs of C_F does, and the polyline follows the rest of the tear. With the pairs
 // of C_F alone (the rule before) the lone point stayed the only one (checked).
@@ -1069,8 +1069,8 @@ TEST(CutDetector, SlidingFeatureGivesNoCut) {
 // so neither reject_lone_features nor the start's balance test rejects it, and without
 // reject_star_starts the star starts a polyline. With it, no point: one feature's disagreement
 // with its neighbours is what a strain concentration at the model's coarse corner also shows
-// (band-stretch seed 38), and a cut shows two features on each side before it is cut. A seam
-// pulled apart along the full grid is still found along its length.
+// (a stretched band's coarse corner), and a cut shows two features on each side before it is cut. A
+// seam pulled apart along the full grid is still found along its length.
 TEST(CutDetector, StarDoesNotStartAPolyline) {
   const FeatureGrid full = MakeGrid();
   FeatureGrid g;
@@ -1496,7 +1496,7 @@ TEST(CutDetector, PointFarFromTheExtremitiesIsNotAppended) {
   EXPECT_NEAR(xs[0], 130.0, 3.0);
 }
 
-// A lone first point (band-precut-side seed 10: a slit's first point) whose cut still opens
+// A lone first point (a side slit's first point) whose cut still opens
 // near it, too weakly for a second point (a few features move apart 60 mm along, within its
 // growth radius of 28.3 mm), is not replaced by a far cluster (there: a stretched band's stem
 // corner), which the old rule did at once (checked). Once nothing opens near it, the far

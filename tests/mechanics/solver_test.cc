@@ -503,7 +503,7 @@ RowMatX3d TurnFlapOneFrame(double degrees, NewtonMode mode, int newton_iteration
 // The registration's two Newton iterations per frame (mechanics.newton_iterations): where a free
 // flap turns fast (a cut band's lips), one step of the warped stiffness, which neglects dR/dx,
 // stops short of the implicit Euler step; a second iteration brings it closer to the converged
-// step: 9 times at 20 degrees a frame, 1.8 times at 45 (docs/cutting.md "Session 22").
+// step: 9 times at 20 degrees a frame, 1.8 times at 45 (docs/mechanics.md, "Line search").
 TEST(Integrator, SecondNewtonIterationFollowsATurningFlap) {
   for (const double degrees : {10.0, 20.0, 45.0}) {
     SCOPED_TRACE(degrees);
