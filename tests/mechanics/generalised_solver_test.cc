@@ -647,37 +647,40 @@ TEST(GeneralisedImplicitEuler, FixedMasksZeroTheirIncrementsAndVelocities) {
 }
 
 // The tet cantilever with a rigid plate (one frame node) held at its free end by
-// three offset springs: the damped dynamic run settles where the static solver puts it.
-TEST(GeneralisedImplicitEuler, CoupledTetsAndFrameReachTheStaticSolution) {
-  Cantilever a, b;
-  const auto add_plate = [](Cantilever* c, ZeroLengthSpringTerm* springs,
-                            std::vector<NodeInertia>* inertia) {
-    const int plate = c->state.AddFrameNode({70, 10, 0}, Eigen::Matrix3d::Identity());
-    // Three free-end vertices (not on a line, so the plate has no hinge mode).
+// three offset springs (to free-end vertices not on a line: no hinge mode).
+struct PlateOnCantilever : Cantilever {
+  ZeroLengthSpringTerm springs;
+  std::vector<NodeInertia> inertia;
+  int plate;
+  PlateOnCantilever() {
+    plate = state.AddFrameNode({70, 10, 0}, Eigen::Matrix3d::Identity());
     for (const Eigen::Vector3d& offset :
          {Eigen::Vector3d(-10, -10, 0), Eigen::Vector3d(-10, 10, 0), Eigen::Vector3d(-10, 0, 20)}) {
       int vertex = -1;
-      for (int v = 0; v < c->body.num_vertices(); ++v)
-        if ((c->body.rest_position(v) - Eigen::Vector3d(70, 10, 0) - offset).norm() < 1e-9)
-          vertex = v;
-      springs->Add(SpringAnchor::AtOffset(plate, offset),
-                   SpringAnchor::AtNode(c->tets->vertex_node()[vertex]), 20.0);
+      for (int v = 0; v < body.num_vertices(); ++v)
+        if ((body.rest_position(v) - Eigen::Vector3d(70, 10, 0) - offset).norm() < 1e-9) vertex = v;
+      springs.Add(SpringAnchor::AtOffset(plate, offset),
+                  SpringAnchor::AtNode(tets->vertex_node()[vertex]), 20.0);
     }
-    *inertia = CollectNodeInertia(c->state, {c->tets.get()});
-    (*inertia)[plate].mass_kg = 0.002;
-    (*inertia)[plate].body_inertia = Eigen::Vector3d(0.07, 0.07, 0.13).asDiagonal();
-    c->gterm->SetMasses(*inertia);
-    return plate;
-  };
-  ZeroLengthSpringTerm sa, sb;
-  std::vector<NodeInertia> ia, ib;
-  const int plate = add_plate(&a, &sa, &ia);
-  add_plate(&b, &sb, &ib);
+    inertia = CollectNodeInertia(state, {tets.get()});
+    inertia[plate].mass_kg = 0.002;
+    inertia[plate].body_inertia = Eigen::Vector3d(0.07, 0.07, 0.13).asDiagonal();
+    gterm->SetMasses(inertia);
+  }
+  GeneralisedSummary Step(GeneralisedImplicitEuler* euler) {
+    return euler->Step(&state, {tets.get(), &springs}, {gterm.get()}, inertia);
+  }
+};
+
+// The damped dynamic run settles where the static solver puts the coupled model.
+TEST(GeneralisedImplicitEuler, CoupledTetsAndFrameReachTheStaticSolution) {
+  PlateOnCantilever a, b;
+  const int plate = a.plate;
   GeneralisedStaticOptions so;
   so.tolerance_mm = 1e-8;
   so.tolerance_rad = 1e-10;
   const GeneralisedSummary ss =
-      GeneralisedStaticSolver(so).Solve(&a.state, {a.tets.get(), &sa, a.gterm.get()});
+      GeneralisedStaticSolver(so).Solve(&a.state, {a.tets.get(), &a.springs, a.gterm.get()});
   ASSERT_EQ(ss.status, StepStatus::kConverged)
       << ss.message << " " << ss.newton_iterations << " " << ss.last_increment_mm << " "
       << ss.last_increment_rad << " cuts " << ss.line_search_cuts;
@@ -687,7 +690,7 @@ TEST(GeneralisedImplicitEuler, CoupledTetsAndFrameReachTheStaticSolution) {
   o.rayleigh_stiffness_beta = 0.002;
   GeneralisedImplicitEuler euler(o);
   for (int step = 0; step < 600; ++step) {
-    const GeneralisedSummary s = euler.Step(&b.state, {b.tets.get(), &sb}, {b.gterm.get()}, ib);
+    const GeneralisedSummary s = b.Step(&euler);
     ASSERT_EQ(s.status, StepStatus::kConverged) << s.message;
   }
   const double sag = (a.state.positions() - a.state.rest_positions()).cwiseAbs().maxCoeff();
@@ -696,5 +699,29 @@ TEST(GeneralisedImplicitEuler, CoupledTetsAndFrameReachTheStaticSolution) {
   EXPECT_LT(LogSO3(a.state.rotation(plate) * b.state.rotation(plate).transpose()).norm(), 1e-6);
 }
 
+// The generalised matrix (6-DOF blocks among 3-DOF ones) through CG: the same steps as CHOLMOD.
+TEST(GeneralisedImplicitEuler, ConjugateGradientStepsEqualCholmod) {
+  for (const Preconditioner pc : {Preconditioner::kJacobi, Preconditioner::kBlockJacobi}) {
+    PlateOnCantilever a, b;
+    GeneralisedImplicitEulerOptions o;
+    o.dt_s = 0.02;
+    o.linear_solver.relative_tolerance = 1e-13;
+    GeneralisedImplicitEuler direct(o);
+    o.linear_solver.type = LinearSolverType::kConjugateGradient;
+    o.linear_solver.preconditioner = pc;
+    o.linear_solver.max_iterations = 10000;
+    GeneralisedImplicitEuler cg(o);
+    for (int step = 0; step < 5; ++step) {
+      ASSERT_EQ(a.Step(&direct).status, StepStatus::kConverged);
+      const GeneralisedSummary s = b.Step(&cg);
+      ASSERT_EQ(s.status, StepStatus::kConverged) << s.message;
+      EXPECT_GT(s.linear_iterations, 0);
+    }
+    const double sag = (a.state.positions() - a.state.rest_positions()).cwiseAbs().maxCoeff();
+    EXPECT_LT((a.state.positions() - b.state.positions()).cwiseAbs().maxCoeff(), 1e-8 * sag);
+    EXPECT_LT(LogSO3(a.state.rotation(a.plate) * b.state.rotation(a.plate).transpose()).norm(),
+              1e-8);
+  }
+}
 }  // namespace
 }  // namespace arreg::mechanics
