@@ -145,6 +145,7 @@ GeneralisedStaticSolver::GeneralisedStaticSolver(const GeneralisedStaticOptions&
 GeneralisedSummary GeneralisedStaticSolver::Solve(
     GeneralisedState* state, const std::vector<GeneralisedEnergyTerm*>& terms) {
   GeneralisedSummary summary;
+  if (state->num_dofs() == 0) return summary;  // nothing to solve (converged)
   const auto t_start = Clock::now();
   summary.pattern_rebuilt = system_.Refresh(*state, terms);
   if (summary.pattern_rebuilt) solver_->PatternChanged();
@@ -226,6 +227,7 @@ GeneralisedSummary GeneralisedImplicitEuler::Step(
                     "generalised step inertia", inertia.size(), " entries for ", state->num_nodes(),
                     " nodes");
   GeneralisedSummary total;
+  if (state->num_dofs() == 0) return total;  // nothing moves
   const auto t0 = Clock::now();
   const double h = options_.dt_s / options_.substeps;
   for (int s = 0; s < options_.substeps; ++s) {

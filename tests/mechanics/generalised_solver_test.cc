@@ -723,5 +723,35 @@ TEST(GeneralisedImplicitEuler, ConjugateGradientStepsEqualCholmod) {
               1e-8);
   }
 }
+
+TEST(GeneralisedSolvers, EmptyStateIsConverged) {
+  GeneralisedState state;
+  ZeroLengthSpringTerm springs;
+  EXPECT_EQ(GeneralisedStaticSolver(GeneralisedStaticOptions{}).Solve(&state, {&springs}).status,
+            StepStatus::kConverged);
+  EXPECT_EQ(GeneralisedImplicitEuler(GeneralisedImplicitEulerOptions{})
+                .Step(&state, {}, {&springs}, {})
+                .status,
+            StepStatus::kConverged);
+}
+
+TEST(GeneralisedSolvers, OptionsCheckNamesTheField) {
+  GeneralisedStaticOptions s;
+  s.tolerance_rad = 0;
+  EXPECT_THROW(s.Check(), Error);
+  GeneralisedImplicitEulerOptions e;
+  e.newton_tolerance_rad = -1;
+  EXPECT_THROW(e.Check(), Error);
+  try {
+    e.Check();
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find("newton_tolerance_rad"), std::string::npos);
+  }
+  GeneralisedImplicitEulerOptions m;
+  GeneralisedImplicitEuler euler(m);
+  GeneralisedState state;
+  state.AddFrameNode({0, 0, 0}, Eigen::Matrix3d::Identity());
+  EXPECT_THROW(euler.Step(&state, {}, {}, {}), Error);  // inertia for 0 of 1 nodes
+}
 }  // namespace
 }  // namespace arreg::mechanics
