@@ -372,8 +372,10 @@ TEST_P(ImplicitStepsAgree, TetCantileverEqualsTheImplicitEulerIntegrator) {
   o.max_newton_iterations = GetParam() == NewtonMode::kFixedIterations ? 2 : 20;
   o.rayleigh_mass_alpha = 0.5;
   o.rayleigh_stiffness_beta = 0.01;
+  o.substeps = GetParam() == NewtonMode::kOneStep ? 1 : 2;  // sub-steps covered too
   GeneralisedImplicitEulerOptions g;
   g.dt_s = o.dt_s;
+  g.substeps = o.substeps;
   g.newton_mode = o.newton_mode;
   g.max_newton_iterations = o.max_newton_iterations;
   g.rayleigh_mass_alpha = o.rayleigh_mass_alpha;
