@@ -28,6 +28,8 @@ const Bench kBenches[] = {
      "implicit corotational step driven by springs (ms/step, phases)"},
     {"pipeline", RunBenchPipeline,
      "arreg run per stage (decode .. encode), fps with/without video"},
+    {"shell", RunBenchShell,
+     "Bezier shell: implicit step of 1,000 elements (+10,000 mapped triangles), cost growth"},
     {"tracking", RunBenchTracking, "video decode, SURF detection and LK tracking speed"},
     {nullptr, nullptr, nullptr},  // end marker; keeps the table valid while it grows
 };

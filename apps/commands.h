@@ -19,6 +19,7 @@ int RunBenchDetection(int argc, char** argv);
 int RunBenchMechanics(int argc, char** argv);
 int RunBenchFrames(int argc, char** argv);
 int RunBenchPipeline(int argc, char** argv);
+int RunBenchShell(int argc, char** argv);
 int RunBenchTracking(int argc, char** argv);
 
 }  // namespace arreg::cli

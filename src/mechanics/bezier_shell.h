@@ -73,6 +73,14 @@ Eigen::Matrix<double, 10, 1> BezierTriangleWeights(double xi1, double xi2);
 std::vector<Eigen::Matrix3d> ShellVertexRotations(const RowMatX3d& positions,
                                                   const std::vector<Eigen::Vector3i>& triangles);
 
+// Positions and rotations of a state, to recognise it again (derivative caches).
+struct StateSnapshot {
+  RowMatX3d positions;
+  std::vector<Eigen::Matrix3d> rotations;
+  void Take(const GeneralisedState& state);
+  bool Matches(const GeneralisedState& state) const;  // exact equality
+};
+
 class BezierShell : public GeneralisedEnergyTerm, public InertiaSource {
  public:
   // triangles: (#T x 3) frame-node indices of `state`, counter-clockwise about
@@ -85,6 +93,9 @@ class BezierShell : public GeneralisedEnergyTerm, public InertiaSource {
 
   std::string name() const override { return "bezier_shell"; }
   void AppendStencils(std::vector<std::vector<int>>* stencils) const override;
+  // Computes every element's gradient and Hessian once; AddGradient and
+  // AddHessian at the same positions and rotations reuse them.
+  void Update(const GeneralisedState& state) override;
   double Value(const GeneralisedState& state) const override;
   void AddGradient(const GeneralisedState& state, Eigen::VectorXd* gradient) const override;
   // Hessian per options().hessian (default: Gauss-Newton, positive semi-definite).
@@ -137,8 +148,14 @@ class BezierShell : public GeneralisedEnergyTerm, public InertiaSource {
   };
 
  private:
+  bool CacheMatches(const GeneralisedState& state) const;
+
   BezierShellOptions options_;
   std::vector<Element> elements_;
+  // Derivatives at the state of the last Update (positions and rotations kept to check).
+  std::vector<Eigen::Matrix<double, 18, 1>> cached_gradient_;
+  std::vector<Eigen::Matrix<double, 18, 18>> cached_hessian_;
+  StateSnapshot cached_state_;
 };
 
 // Supports and loads that node-level fixed masks cannot express, for shell

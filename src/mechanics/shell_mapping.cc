@@ -87,6 +87,9 @@ ShellMapping ShellMapping::Project(const BezierShell& shell, const GeneralisedSt
 }
 
 void ShellMapping::ElementControlPoints(const GeneralisedState& state, bool with_jacobian) const {
+  if ((cached_jacobian_ || !with_jacobian) && cached_state_.Matches(state)) return;
+  cached_state_.Take(state);
+  cached_jacobian_ = with_jacobian;
   for (int e : used_elements_)
     shell_->ControlPoints(state, e, &control_[e], with_jacobian ? &jacobian_[e] : nullptr);
 }
@@ -133,7 +136,8 @@ void ShellMapping::AddForces(const GeneralisedState& state, const RowMatX3d& for
   for (int e : used_elements_) {
     const Eigen::Matrix<double, 18, 1> g = jacobian_[e].transpose() * cf[e];
     const Eigen::Vector3i& t = shell_->triangle(e);
-    for (int i = 0; i < 3; ++i) generalised->segment<6>(state.dof_offset(t[i])) += g.segment<6>(6 * i);
+    for (int i = 0; i < 3; ++i)
+      generalised->segment<6>(state.dof_offset(t[i])) += g.segment<6>(6 * i);
   }
 }
 

@@ -14,7 +14,8 @@ namespace arreg::mechanics {
 
 struct ShellSurfacePoint {
   int element = -1;  // BezierShell element index
-  double xi1 = 0, xi2 = 0;  // barycentric weights of the element's corners 1 and 2 (xi3 = 1 - xi1 - xi2)
+  double xi1 = 0,
+         xi2 = 0;  // barycentric weights of the element's corners 1 and 2 (xi3 = 1 - xi1 - xi2)
 };
 
 class ShellMapping {
@@ -42,7 +43,8 @@ class ShellMapping {
                  Eigen::VectorXd* generalised) const;
 
  private:
-  // Control points and their Jacobian of every element that carries a point.
+  // Control points and their Jacobian of every element that carries a point,
+  // computed once per state (positions, velocities and forces of one state share them).
   void ElementControlPoints(const GeneralisedState& state, bool with_jacobian) const;
 
   const BezierShell* shell_;
@@ -51,6 +53,8 @@ class ShellMapping {
   std::vector<int> used_elements_;
   mutable std::vector<Eigen::Matrix<double, 10, 3>> control_;
   mutable std::vector<Eigen::Matrix<double, 30, 18>> jacobian_;
+  mutable StateSnapshot cached_state_;  // the state control_ (and jacobian_) belong to
+  mutable bool cached_jacobian_ = false;
 };
 
 }  // namespace arreg::mechanics

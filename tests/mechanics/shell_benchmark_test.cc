@@ -114,7 +114,7 @@ double Cantilever(int load, int nx, int ny) {
     g.state.SetFixedTranslation(g.node(0, j), true);
     g.state.SetFixedRotation(g.node(0, j), true);
     const double share = (j == 0 || j == ny ? 0.5 : 1.0) / ny;  // uniform edge traction
-    const Eigen::Vector3d f = load == 0 ? Eigen::Vector3d(share, 0, 0)
+    const Eigen::Vector3d f = load == 0   ? Eigen::Vector3d(share, 0, 0)
                               : load == 1 ? Eigen::Vector3d(0, share, 0)
                                           : Eigen::Vector3d(0, 0, share);
     if (load < 3) loads.AddForce(g.node(nx, j), kLoadScale * f);
@@ -129,7 +129,8 @@ double Cantilever(int load, int nx, int ny) {
     const Eigen::Vector3d d = Displacement(g, g.node(nx, j));
     sum += load == 0 ? d.x() : load == 1 ? d.y() : d.z();
   }
-  if (load == 3) return 0.5 * (Displacement(g, g.node(nx, ny)).z() - Displacement(g, g.node(nx, 0)).z());
+  if (load == 3)
+    return 0.5 * (Displacement(g, g.node(nx, ny)).z() - Displacement(g, g.node(nx, 0)).z());
   return sum / (ny + 1);
 }
 
@@ -140,17 +141,18 @@ TEST(ShellReference, MacNealHarderStraightCantilever) {
               extension / 3.0e-5);
   std::printf("MacNeal-Harder out-of-plane 24x2: %.5g (reference 0.4321, ratio %.4f)\n",
               out_of_plane, out_of_plane / 0.4321);
-  std::printf("MacNeal-Harder twist        24x2: %.5g (Kirchhoff strip 0.002340, ratio %.4f; "
-              "published 0.03208)\n",
-              twist, twist / 0.002340);
+  std::printf(
+      "MacNeal-Harder twist        24x2: %.5g (Kirchhoff strip 0.002340, ratio %.4f; "
+      "published 0.03208)\n",
+      twist, twist / 0.002340);
   EXPECT_NEAR(extension / 3.0e-5, 1.0, 0.02);
   EXPECT_NEAR(out_of_plane / 0.4321, 1.0, 0.02);
   EXPECT_NEAR(twist / 0.002340, 1.0, 0.02);
   double previous = 0;
   for (int k : {1, 2, 4}) {
     const double d = Cantilever(1, 24 * k, 2 * k);
-    std::printf("MacNeal-Harder in-plane    %dx%d: %.5g (reference 0.1081, ratio %.4f)\n",
-                24 * k, 2 * k, d, d / 0.1081);
+    std::printf("MacNeal-Harder in-plane    %dx%d: %.5g (reference 0.1081, ratio %.4f)\n", 24 * k,
+                2 * k, d, d / 0.1081);
     EXPECT_GT(d, previous);             // converges from below (locking) ...
     EXPECT_LT(d / 0.1081, 1.0 + 0.02);  // ... towards the reference
     previous = d;
@@ -163,7 +165,7 @@ TEST(ShellReference, MacNealHarderStraightCantilever) {
 // ends (ux = uz = 0), free straight edges. Quarter model; vertical
 // displacement at the middle of the free edge 0.3024 (issue 34: within 3 % at
 // 32 x 32).
-double ScordelisLo(int n) {
+double ScordelisLo(int n, bool held_ends = false) {
   const double r = 25, half_arc = 40 * M_PI / 180;
   // u: arc angle from the crown (0) to the free edge; v: from midspan (0) to the diaphragm.
   Grid g = MakeGrid(
@@ -188,8 +190,12 @@ double ScordelisLo(int n) {
     supports.HoldTranslation(mid, Eigen::Vector3d::UnitY(), kt);  // symmetry y = 0
     supports.HoldRotation(mid, Eigen::Vector3d::UnitX(), kr);
     supports.HoldRotation(mid, Eigen::Vector3d::UnitZ(), kr);
-    supports.HoldTranslation(diaphragm, Eigen::Vector3d::UnitX(), kt);
-    supports.HoldTranslation(diaphragm, Eigen::Vector3d::UnitZ(), kt);
+    if (held_ends) {
+      g.state.SetFixedTranslation(diaphragm, true);
+    } else {
+      supports.HoldTranslation(diaphragm, Eigen::Vector3d::UnitX(), kt);
+      supports.HoldTranslation(diaphragm, Eigen::Vector3d::UnitZ(), kt);
+    }
   }
   std::vector<NodeInertia> inertia(g.state.num_nodes());
   shell.AddNodeInertia(g.state, &inertia);  // density 1: mass = t * area
@@ -259,6 +265,28 @@ TEST(ShellReference, PinchedHemisphereWithHole) {
   EXPECT_NEAR(d / 0.094, 1.0, 0.03);
 }
 
+// ---- The seed's own variants (seed 000 section 5) -------------------------------
+// Clamped-end roof: the curved edges held in all three translations (the seed:
+// "the only difference from the original ... where the edges are free to move
+// in longitudinal direction"; rotations free as at a diaphragm), otherwise
+// Scordelis-Lo. The seed's element gives 0.157 at N = 40 vertices per side; here the quarter
+// model with 20 x 20 cells (41 vertices per side of the whole roof). Full
+// hemisphere with N x N vertices per quadrant and loads of 2: the seed gives
+// 0.183 at N = 20 against 0.188; by symmetry (linear response) that is twice
+// the quarter model with 19 x 19 cells under unit loads. Asserted within 3 %
+// of the seed's own figures (issue 34: "reproduced").
+TEST(ShellReference, SeedVariants) {
+  const double roof = ScordelisLo(20, true), hemisphere = 2 * Hemisphere(19);
+  std::printf("Seed clamped roof, 41 vertices/side: %.4f (seed 0.157, ratio %.4f)\n", roof,
+              roof / 0.157);
+  std::printf(
+      "Seed full hemisphere, 20 vertices/quadrant side: %.4f (seed 0.183, ratio %.4f; "
+      "reference 0.188)\n",
+      hemisphere, hemisphere / 0.183);
+  EXPECT_NEAR(roof / 0.157, 1.0, 0.03);
+  EXPECT_NEAR(hemisphere / 0.183, 1.0, 0.03);
+}
+
 // ---- Square plates under uniform load ------------------------------------------
 // Source: Timoshenko & Woinowsky-Krieger, Theory of Plates and Shells (tables 8
 // and 35, nu = 0.3): centre deflection alpha q a^4 / D, alpha = 0.00406 simply
@@ -285,8 +313,8 @@ double Plate(int n, bool clamped) {
 
 TEST(ShellReference, SquarePlatesMatchTimoshenko) {
   for (int n : {4, 8, 16}) {
-    std::printf("Plate N = %2d: simply supported alpha %.6f (0.00406), clamped %.6f (0.00126)\n",
-                n, Plate(n, false), Plate(n, true));
+    std::printf("Plate N = %2d: simply supported alpha %.6f (0.00406), clamped %.6f (0.00126)\n", n,
+                Plate(n, false), Plate(n, true));
   }
   EXPECT_NEAR(Plate(16, false) / 0.00406, 1.0, 0.02);
   EXPECT_NEAR(Plate(16, true) / 0.00126, 1.0, 0.02);
