@@ -29,17 +29,17 @@ std::vector<NodeInertia> CollectNodeInertia(const GeneralisedState& state,
 }
 
 // ---------------------------------------------------------------------------
-// Tetrahedra on point nodes.
+// Terms of a tet body on point nodes.
 
-TetElasticityTerm::TetElasticityTerm(const MechanicalState* body, std::vector<int> vertex_node,
-                                     const CorotationalOptions& options)
-    : body_(body), vertex_node_(std::move(vertex_node)), elastic_(options) {
+TetBodyTerm::TetBodyTerm(const MechanicalState* body, std::vector<int> vertex_node,
+                         EnergyTerm* term)
+    : body_(body), vertex_node_(std::move(vertex_node)), term_(term) {
   ARREG_CHECK_INPUT(static_cast<int>(vertex_node_.size()) == body_->num_vertices(), "",
                     "tet term vertex_node", vertex_node_.size(), " entries for ",
                     body_->num_vertices(), " vertices");
 }
 
-void TetElasticityTerm::CheckNodes(const GeneralisedState& state) const {
+void TetBodyTerm::CheckNodes(const GeneralisedState& state) const {
   ARREG_CHECK_INPUT(static_cast<int>(vertex_node_.size()) == body_->num_vertices(), "",
                     "tet term vertex_node", vertex_node_.size(), " entries for ",
                     body_->num_vertices(), " vertices (body changed: rebuild the term)");
@@ -48,47 +48,46 @@ void TetElasticityTerm::CheckNodes(const GeneralisedState& state) const {
                       "tet term vertex_node", "node ", n, " is not a point node of the state");
 }
 
-RowMatX3d TetElasticityTerm::VertexPositions(const GeneralisedState& state) const {
+RowMatX3d TetBodyTerm::VertexPositions(const GeneralisedState& state) const {
   RowMatX3d x(body_->num_vertices(), 3);
   const RowMatX3d& p = state.positions();
   for (int v = 0; v < x.rows(); ++v) x.row(v) = p.row(vertex_node_[v]);
   return x;
 }
 
-void TetElasticityTerm::AppendStencils(std::vector<std::vector<int>>* stencils) const {
+void TetBodyTerm::AppendStencils(std::vector<std::vector<int>>* stencils) const {
   const RowMatX4i& tets = body_->tetrahedra();
   for (int t = 0; t < tets.rows(); ++t)
     stencils->push_back({vertex_node_[tets(t, 0)], vertex_node_[tets(t, 1)],
                          vertex_node_[tets(t, 2)], vertex_node_[tets(t, 3)]});
 }
 
-void TetElasticityTerm::Update(const GeneralisedState& state) {
+void TetBodyTerm::Update(const GeneralisedState& state) {
   CheckNodes(state);
-  elastic_.Update(*body_, VertexPositions(state));
+  term_->Update(*body_, VertexPositions(state));
 }
 
-double TetElasticityTerm::Value(const GeneralisedState& state) const {
-  return elastic_.Value(*body_, VertexPositions(state));
+double TetBodyTerm::Value(const GeneralisedState& state) const {
+  return term_->Value(*body_, VertexPositions(state));
 }
 
-void TetElasticityTerm::AddGradient(const GeneralisedState& state,
-                                    Eigen::VectorXd* gradient) const {
+void TetBodyTerm::AddGradient(const GeneralisedState& state, Eigen::VectorXd* gradient) const {
   RowMatX3d g = RowMatX3d::Zero(body_->num_vertices(), 3);
-  elastic_.AddGradient(*body_, VertexPositions(state), &g);
+  term_->AddGradient(*body_, VertexPositions(state), &g);
   for (int v = 0; v < g.rows(); ++v)
     gradient->segment<3>(state.dof_offset(vertex_node_[v])) += g.row(v).transpose();
 }
 
-void TetElasticityTerm::AddHessian(const GeneralisedState& state, double scale,
-                                   HessianSink* sink) const {
+void TetBodyTerm::AddHessian(const GeneralisedState& state, double scale, HessianSink* sink) const {
   if (hessian_version_ != body_->topology_version() ||
       hessian_.num_vertices() != body_->num_vertices()) {
     hessian_ = SystemMatrix(body_->num_vertices(), body_->tetrahedra());
     hessian_version_ = body_->topology_version();
   }
   hessian_.SetZero();
-  elastic_.AddHessian(*body_, VertexPositions(state), scale, &hessian_);
-  // Each vertex pair once (the sink adds the transposed block).
+  term_->AddHessian(*body_, VertexPositions(state), scale, &hessian_);
+  // Each vertex pair once (the sink adds the transposed block); blocks the term left at
+  // zero (a spring's few tetrahedra) are skipped.
   const SparseMatrixd& m = hessian_.matrix();
   const int* outer = m.outerIndexPtr();
   const int* inner = m.innerIndexPtr();
@@ -99,17 +98,22 @@ void TetElasticityTerm::AddHessian(const GeneralisedState& state, double scale,
     for (int k = outer[3 * b]; k < outer[3 * b + 1]; k += 3) {
       const int a = inner[k] / 3;
       if (a > b) break;  // rows sorted by vertex
-      sink->AddBlock(vertex_node_[a], vertex_node_[b],
-                     BlockMap(values + k, Eigen::OuterStride<>(stride)), 1.0);
+      const BlockMap block(values + k, Eigen::OuterStride<>(stride));
+      if (block.cwiseAbs().maxCoeff() == 0) continue;
+      sink->AddBlock(vertex_node_[a], vertex_node_[b], block, 1.0);
     }
   }
 }
 
+TetElasticityTerm::TetElasticityTerm(const MechanicalState* body, std::vector<int> vertex_node,
+                                     const CorotationalOptions& options)
+    : TetBodyTerm(body, std::move(vertex_node), &elastic_), elastic_(options) {}
+
 void TetElasticityTerm::AddNodeInertia(const GeneralisedState& state,
                                        std::vector<NodeInertia>* inertia) const {
   CheckNodes(state);
-  const Eigen::VectorXd masses = body_->LumpedVertexMasses();
-  for (int v = 0; v < masses.size(); ++v) (*inertia)[vertex_node_[v]].mass_kg += masses[v];
+  const Eigen::VectorXd masses = body().LumpedVertexMasses();
+  for (int v = 0; v < masses.size(); ++v) (*inertia)[vertex_node()[v]].mass_kg += masses[v];
 }
 
 // ---------------------------------------------------------------------------

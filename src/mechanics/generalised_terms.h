@@ -24,40 +24,56 @@ std::vector<int> AddTetVertexNodes(const MechanicalState& body, GeneralisedState
 std::vector<NodeInertia> CollectNodeInertia(const GeneralisedState& state,
                                             const std::vector<const InertiaSource*>& sources);
 
-// CorotationalElasticity (elastic_energy.h) of the tetrahedra of `body` with
-// vertex v on point node vertex_node[v]: the same element code, energy,
-// gradient and warped-stiffness Hessian (positive semi-definite per element).
-// `body` gives topology, rest data and masses; its own positions are not used.
-// It carries the tetrahedra's lumped masses (a quarter of each element's mass
-// per vertex, as MechanicalState::LumpedVertexMasses). After the body's
-// elements change (a cut), the solvers' pattern needs Invalidate().
-class TetElasticityTerm : public GeneralisedEnergyTerm, public InertiaSource {
+// An EnergyTerm of a tet body (energy.h: CorotationalElasticity, SpringEnergy with
+// its embedded anchors, GravityEnergy, PointForceEnergy) as a generalised term, with
+// vertex v of `body` on point node vertex_node[v]: the term's own code computes energy,
+// gradient and Hessian at the vertex positions gathered from the nodes. `body` gives
+// topology and rest data; its own positions are not used. Stencils: the tetrahedra.
+// After the body's elements change (a cut), the solvers' pattern needs InvalidatePattern().
+class TetBodyTerm : public GeneralisedEnergyTerm {
  public:
-  // `body` must outlive the term; vertex_node has one node per vertex, each a point node.
-  TetElasticityTerm(const MechanicalState* body, std::vector<int> vertex_node,
-                    const CorotationalOptions& options = {});
-  std::string name() const override { return "tet-corotational"; }
+  // `body` and `term` must outlive this; vertex_node: one point node per vertex.
+  TetBodyTerm(const MechanicalState* body, std::vector<int> vertex_node, EnergyTerm* term);
+  std::string name() const override { return term_->name(); }
   void AppendStencils(std::vector<std::vector<int>>* stencils) const override;
   void Update(const GeneralisedState& state) override;
   double Value(const GeneralisedState& state) const override;
   void AddGradient(const GeneralisedState& state, Eigen::VectorXd* gradient) const override;
   void AddHessian(const GeneralisedState& state, double scale, HessianSink* sink) const override;
-  void AddNodeInertia(const GeneralisedState& state,
-                      std::vector<NodeInertia>* inertia) const override;
 
-  const CorotationalElasticity& elasticity() const { return elastic_; }
+  const MechanicalState& body() const { return *body_; }
   const std::vector<int>& vertex_node() const { return vertex_node_; }
   // The body's vertex positions (#V x 3) gathered from the nodes.
   RowMatX3d VertexPositions(const GeneralisedState& state) const;
 
- private:
+ protected:
   void CheckNodes(const GeneralisedState& state) const;
+
+ private:
   const MechanicalState* body_;
   std::vector<int> vertex_node_;
-  CorotationalElasticity elastic_;
-  // Assembly target of the element blocks (the body's vertex pattern), scattered to the sink.
+  EnergyTerm* term_;
+  // Assembly target of the term's blocks (the body's vertex pattern), scattered to the sink.
   mutable SystemMatrix hessian_;
   mutable std::uint64_t hessian_version_ = 0;
+};
+
+// CorotationalElasticity (elastic_energy.h) of the tetrahedra of `body` on point
+// nodes (TetBodyTerm): the same element code, energy, gradient and warped-stiffness
+// Hessian (positive semi-definite per element). It carries the tetrahedra's lumped
+// masses (a quarter of each element's mass per vertex, as
+// MechanicalState::LumpedVertexMasses); no rotational inertia (point nodes).
+class TetElasticityTerm : public TetBodyTerm, public InertiaSource {
+ public:
+  TetElasticityTerm(const MechanicalState* body, std::vector<int> vertex_node,
+                    const CorotationalOptions& options = {});
+  std::string name() const override { return "tet-corotational"; }
+  void AddNodeInertia(const GeneralisedState& state,
+                      std::vector<NodeInertia>* inertia) const override;
+  const CorotationalElasticity& elasticity() const { return elastic_; }
+
+ private:
+  CorotationalElasticity elastic_;  // constructed after the base, which only keeps its address
 };
 
 // A point carried by a node, x_n + R_n r with the offset r in the node's body
