@@ -5,13 +5,12 @@
 // Usage: build a GeneralisedState (AddPointNode / AddFrameNode, or
 // AddTetVertexNodes for a tet body), make the terms (an element term
 // implementing GeneralisedEnergyTerm, and InertiaSource where it carries mass;
-// TetElasticityTerm, ZeroLengthSpringTerm, GravityTerm from
-// generalised_terms.h), set boundary conditions with SetFixedTranslation /
-// SetFixedRotation (clamped = both, simply supported = translation only). Then
-// either GeneralisedStaticSolver(options).Solve(&state, {&elastic, &springs,
-// &gravity}) for the equilibrium (Newton with the terms' Hessians and an Armijo
-// line search on the total energy), or, per time step,
-// GeneralisedImplicitEuler(options).Step(&state, {&elastic}, {&springs,
+// TetElasticityTerm, TetBodyTerm (a tet body's other EnergyTerms),
+// ZeroLengthSpringTerm, GravityTerm from generalised_terms.h), set boundary conditions with
+// SetFixedTranslation / SetFixedRotation (clamped = both, simply supported = translation only).
+// Then either GeneralisedStaticSolver(options).Solve(&state, {&elastic, &springs, &gravity}) for
+// the equilibrium (Newton with the terms' Hessians and an Armijo line search on the total energy),
+// or, per time step, GeneralisedImplicitEuler(options).Step(&state, {&elastic}, {&springs,
 // &gravity}, CollectNodeInertia(state, {&elastic})), where the first list is
 // the elastic terms that Rayleigh's beta damps. Each Newton increment is
 // (dx, dtheta) per node and the solvers apply it as x += dx, R <- Exp(dtheta) R
