@@ -14,15 +14,26 @@
 //   xi = (S11 - 1, S22 - 1, S12, Log(Q_1), Log(Q_2), Log(Q_3)),
 //   Q_i = R_e^T R_i R_i0^T R_e0 the corner rotations relative to the element
 //   frame. Rigid motions give xi = 0 exactly. K (12 x 12) is the linear
-//   stiffness of the Bezier interpolation (membrane + Kirchhoff bending, 6-point
-//   Gauss, seed eq. 24-29) in these coordinates.
-// Why the edge segment follows S: a purely rigid segment keeps the edge points
-// at 1/3 of the REST edge length from their corner, so a uniform stretch gives
-// a non-uniform strain along the edge (zero at the corners, 1.5x the mean in
-// the middle) and the element fails the constant-strain patch test (20 % too
-// stiff in extension at any mesh size). Following S makes constant strain exact;
-// neighbouring elements then share edge points only up to the difference of
-// their in-plane rotations (a non-conforming element that passes the patch test).
+//   stiffness of the element in these coordinates (6-point Gauss):
+//   - membrane: small strain of the Bezier surface's in-plane displacement
+//     (seed eq. 24-29), the edge points moving in plane with the drilling
+//     rotation only (the seed's split, section 3.2; the other two rotations
+//     would move a curved element's raised edge points in plane and lock);
+//   - Kirchhoff bending: a constant curvature from the boundary integral
+//     -(1/A) int sym(grad w (x) n) ds with the normal slope linear between the
+//     corner rotations along each edge (shared by neighbours), plus the Bezier
+//     curvature's deviation from its element mean.
+// Departures from the seed, each for a failed patch test: (1) the edge segment
+// follows S: a rigid segment keeps the edge points at 1/3 of the REST edge
+// length from their corner, so a uniform stretch gives a non-uniform strain
+// along the edge (zero at the corners, 1.5x the mean in the middle; 20 % too
+// stiff in extension at any mesh size); neighbours then share edge points only
+// up to the difference of their in-plane rotations (non-conforming, passes the
+// patch test). (2) The centre point by eq. 7 (quadratic precision), not eq. 10,
+// so that a constant curvature is reproduced. (3) The boundary-integral
+// constant curvature: the Bezier surface is only C0 across edges and its own
+// curvature leaves an interior-node residual (~11 % of the boundary forces on
+// a patch), which converges plates 3-4 % too soft.
 #pragma once
 
 #include <Eigen/Core>
