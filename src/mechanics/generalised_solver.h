@@ -15,6 +15,11 @@
 // the elastic terms that Rayleigh's beta damps. Each Newton increment is
 // (dx, dtheta) per node and the solvers apply it as x += dx, R <- Exp(dtheta) R
 // (GeneralisedState::ApplyIncrement); terms are Update()d at every new point.
+// The line search calls Update and Value at its trial points, and the next step
+// (or Newton iteration) starts with Update at the point it accepted: a term that
+// does its work in Update should return early when the configuration is the one
+// of its last Update and compute its energy there (as CorotationalElasticity does),
+// or one-step mode pays for that work twice per step.
 // The sparse pattern is the union of the terms' stencils, rebuilt when nodes
 // are added or the list of terms changes; call InvalidatePattern() after a
 // term's stencils changed otherwise (elements replaced by a cut).
