@@ -410,6 +410,18 @@ TEST(FrameModel, BadSamplesThrow) {
   EXPECT_THROW(FrameModel(points, point_nodes, sampling.samples, Tissue()), Error);
 }
 
+// Mean downward displacement (mm) of the nodes among `nodes` that rest at z = 0.
+double MeanSinkAtZ0(const GeneralisedState& state, const std::vector<int>& nodes) {
+  double sink = 0;
+  int count = 0;
+  for (int n : nodes)
+    if (state.rest_positions()(n, 2) == 0.0) {
+      sink += state.rest_positions()(n, 2) - state.positions()(n, 2);
+      ++count;
+    }
+  return sink / count;
+}
+
 // Coupling by shared frames (seed 004 section 4.2): two stiff bodies joined
 // by a soft connective layer, three frame models over one column of frames
 // 20 x 20 x 30 mm (layers z in [0,10], [10,20], [20,30]); the models share the
@@ -449,14 +461,7 @@ TEST(FrameCoupling, SharedFramesCarryTheLowerBody) {
   const double rho_g = 1e-6 * kStandardGravityMmPerS2;                                    // mN/mm^3
   const double e_b = e_body * kPaToInternalStress, e_t = e_tissue * kPaToInternalStress;  // kPa
   const double expected = rho_g * (50 / e_b + 150 / e_t + 250 / e_b);                     // mm
-  double sink = 0;
-  int bottom = 0;
-  for (int n : nodes)
-    if (state.rest_positions()(n, 2) == 0.0) {
-      sink += state.rest_positions()(n, 2) - state.positions()(n, 2);
-      ++bottom;
-    }
-  sink /= bottom;
+  const double sink = MeanSinkAtZ0(state, nodes);
   std::printf("bottom face sinks %.6f mm, uniaxial analytic %.6f mm\n", sink, expected);
   EXPECT_NEAR(sink, expected, 0.01 * expected);
 }
@@ -514,14 +519,7 @@ TEST(FrameCoupling, SpringsHangATetBodyFromAFrameLayer) {
   const double expected =
       rho_g * (150 / (e_layer * kPaToInternalStress) + 50 / (e_body * kPaToInternalStress)) +
       body_weight_mn / (joined * k);
-  double sink = 0;
-  int bottom = 0;
-  for (int n : vertex_node)
-    if (state.rest_positions()(n, 2) == 0.0) {
-      sink += state.rest_positions()(n, 2) - state.positions()(n, 2);
-      ++bottom;
-    }
-  sink /= bottom;
+  const double sink = MeanSinkAtZ0(state, vertex_node);
   std::printf("tet body bottom sinks %.6f mm, uniaxial analytic %.6f mm\n", sink, expected);
   EXPECT_NEAR(sink, expected, 0.01 * expected);
 }
