@@ -97,6 +97,8 @@ std::string SolveFailure(const LinearSolverSummary& ls) {
 // there): the values of ImplicitEulerIntegrator, so that tet-only steps agree.
 constexpr int kStepLineSearchCuts = 6;
 constexpr double kStepLineSearchMinMm = 1e-6;
+// [rad] The same for rotation increments: 1e-6 mm at 100 mm from the node.
+constexpr double kStepLineSearchMinRad = 1e-8;
 // The static solver's halvings (1/4096 of the increment at most).
 constexpr int kStaticLineSearchCuts = 12;
 
@@ -417,7 +419,7 @@ GeneralisedSummary GeneralisedImplicitEuler::SubStep(
     t = Clock::now();
     if (options_.line_search && slope < 0.0 &&
         (summary.last_increment_mm > kStepLineSearchMinMm ||
-         summary.last_increment_rad > options_.newton_tolerance_rad)) {
+         summary.last_increment_rad > kStepLineSearchMinRad)) {
       Configuration line_start;
       line_start.Save(*state);
       theta_line = theta;
