@@ -200,6 +200,7 @@ TEST(FrameModel, DerivativesMatchFiniteDifferencesFarFromIdentity) {
     CheckDerivatives(HexSampling(), angle, 1);
     CheckDerivatives(TetSampling(), angle, 2);
     CheckDerivatives(MlsSampling(), angle, 3);
+    CheckDerivatives(MlsSampling(0), angle, 6);
   }
 }
 
