@@ -674,17 +674,16 @@ double BezierShell::Value(const GeneralisedState& state) const {
   return sum;
 }
 
-void BezierShell::Update(const GeneralisedState& state) {
+void BezierShell::Update(const GeneralisedState&) { cached_state_ = StateSnapshot(); }
+
+void BezierShell::CacheDerivatives(const GeneralisedState& state) const {
+  if (static_cast<int>(cached_gradient_.size()) == num_elements() && cached_state_.Matches(state))
+    return;
   cached_gradient_.resize(elements_.size());
   cached_hessian_.resize(elements_.size());
   for (int e = 0; e < num_elements(); ++e)
     ElementEnergy(state, e, &cached_gradient_[e], &cached_hessian_[e]);
   cached_state_.Take(state);
-}
-
-bool BezierShell::CacheMatches(const GeneralisedState& state) const {
-  return static_cast<int>(cached_gradient_.size()) == num_elements() &&
-         cached_state_.Matches(state);
 }
 
 void StateSnapshot::Take(const GeneralisedState& state) {
@@ -701,26 +700,20 @@ bool StateSnapshot::Matches(const GeneralisedState& state) const {
 }
 
 void BezierShell::AddGradient(const GeneralisedState& state, Eigen::VectorXd* gradient) const {
-  const bool cached = CacheMatches(state);
-  Vector18d g;
-  for (int e = 0; e < num_elements(); ++e) {
-    if (!cached) ElementEnergy(state, e, &g, nullptr);
-    const Vector18d& ge = cached ? cached_gradient_[e] : g;
+  CacheDerivatives(state);
+  for (int e = 0; e < num_elements(); ++e)
     for (int i = 0; i < 3; ++i)
-      gradient->segment<6>(state.dof_offset(elements_[e].nodes[i])) += ge.segment<6>(6 * i);
-  }
+      gradient->segment<6>(state.dof_offset(elements_[e].nodes[i])) +=
+          cached_gradient_[e].segment<6>(6 * i);
 }
 
 void BezierShell::AddHessian(const GeneralisedState& state, double scale, HessianSink* sink) const {
-  const bool cached = CacheMatches(state);
-  Matrix18d h;
+  CacheDerivatives(state);
   for (int e = 0; e < num_elements(); ++e) {
-    if (!cached) ElementEnergy(state, e, nullptr, &h);
-    const Matrix18d& he = cached ? cached_hessian_[e] : h;
     const Eigen::Vector3i& nodes = elements_[e].nodes;
     for (int a = 0; a < 3; ++a)
       for (int b = a; b < 3; ++b)
-        sink->AddBlock(nodes[a], nodes[b], he.block<6, 6>(6 * a, 6 * b), scale);
+        sink->AddBlock(nodes[a], nodes[b], cached_hessian_[e].block<6, 6>(6 * a, 6 * b), scale);
   }
 }
 

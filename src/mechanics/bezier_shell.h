@@ -104,8 +104,9 @@ class BezierShell : public GeneralisedEnergyTerm, public InertiaSource {
 
   std::string name() const override { return "bezier_shell"; }
   void AppendStencils(std::vector<std::vector<int>>* stencils) const override;
-  // Computes every element's gradient and Hessian once; AddGradient and
-  // AddHessian at the same positions and rotations reuse them.
+  // The first of AddGradient / AddHessian at a state computes every element's
+  // gradient and Hessian; the other (and repeats) at the same positions and
+  // rotations reuse them. Update only drops them.
   void Update(const GeneralisedState& state) override;
   double Value(const GeneralisedState& state) const override;
   void AddGradient(const GeneralisedState& state, Eigen::VectorXd* gradient) const override;
@@ -159,14 +160,15 @@ class BezierShell : public GeneralisedEnergyTerm, public InertiaSource {
   };
 
  private:
-  bool CacheMatches(const GeneralisedState& state) const;
+  // Fills the caches below for `state` unless they hold it already.
+  void CacheDerivatives(const GeneralisedState& state) const;
 
   BezierShellOptions options_;
   std::vector<Element> elements_;
-  // Derivatives at the state of the last Update (positions and rotations kept to check).
-  std::vector<Eigen::Matrix<double, 18, 1>> cached_gradient_;
-  std::vector<Eigen::Matrix<double, 18, 18>> cached_hessian_;
-  StateSnapshot cached_state_;
+  // Element derivatives at cached_state_ (its positions and rotations).
+  mutable std::vector<Eigen::Matrix<double, 18, 1>> cached_gradient_;
+  mutable std::vector<Eigen::Matrix<double, 18, 18>> cached_hessian_;
+  mutable StateSnapshot cached_state_;
 };
 
 // Supports and loads that node-level fixed masks cannot express, for shell

@@ -7,6 +7,7 @@
 #include <random>
 
 #include "core/error.h"
+#include "dense_hessian_sink.h"
 #include "mechanics/bezier_shell.h"
 #include "mechanics/shell_mapping.h"
 #include "mechanics/so3.h"
@@ -14,25 +15,8 @@
 namespace arreg::mechanics {
 namespace {
 
-class DenseSink : public HessianSink {
- public:
-  explicit DenseSink(const GeneralisedState& state)
-      : state_(state), h_(Eigen::MatrixXd::Zero(state.num_dofs(), state.num_dofs())) {}
-  void AddBlock(int a, int b, const Eigen::Ref<const Eigen::MatrixXd>& block,
-                double scale) override {
-    const int oa = state_.dof_offset(a), ob = state_.dof_offset(b);
-    h_.block(oa, ob, block.rows(), block.cols()) += scale * block;
-    if (a != b) h_.block(ob, oa, block.cols(), block.rows()) += scale * block.transpose();
-  }
-  const Eigen::MatrixXd& matrix() const { return h_; }
-
- private:
-  const GeneralisedState& state_;
-  Eigen::MatrixXd h_;
-};
-
 Eigen::MatrixXd DenseHessian(const BezierShell& shell, const GeneralisedState& state) {
-  DenseSink sink(state);
+  testing::DenseHessianSink sink(state);
   shell.AddHessian(state, 1.0, &sink);
   return sink.matrix();
 }
@@ -86,6 +70,14 @@ BezierShellOptions Material(ShellHessian hessian = ShellHessian::kGaussNewton) {
   o.material.thickness_mm = 0.2;
   o.hessian = hessian;
   return o;
+}
+
+// Plane-stress elasticity matrix (Voigt, engineering shear) of the material.
+Eigen::Matrix3d PlaneStress(const BezierShellOptions& o) {
+  const double e = o.material.youngs_modulus_kpa, nu = o.material.poisson_ratio;
+  Eigen::Matrix3d d;
+  d << 1, nu, 0, nu, 1, 0, 0, 0, 0.5 * (1 - nu);
+  return d * e / (1 - nu * nu);
 }
 
 // Deforms the state (positions and rotations) and then moves it rigidly by
@@ -257,11 +249,8 @@ TEST(BezierShell, MembraneConstantStrainPatchTestIsExact) {
   const Eigen::VectorXd f = k * q;
   // Interior node in equilibrium (all 6 DOFs); energy = 1/2 t eps:D:eps area.
   EXPECT_LT(f.segment<6>(48).norm(), 1e-12 * f.norm());
-  const double e = o.material.youngs_modulus_kpa, nu = o.material.poisson_ratio;
   const Eigen::Vector3d ev(eps(0, 0), eps(1, 1), 2 * eps(0, 1));
-  Eigen::Matrix3d d;
-  d << 1, nu, 0, nu, 1, 0, 0, 0, 0.5 * (1 - nu);
-  d *= e / (1 - nu * nu);
+  const Eigen::Matrix3d d = PlaneStress(o);
   const double exact = 0.5 * o.material.thickness_mm * ev.dot(d * ev) * 3.0;  // area 2 x 1.5
   EXPECT_NEAR(0.5 * q.dot(f), exact, 1e-12 * exact);
   // The same holds for the nonlinear energy at a finite uniform stretch with a
@@ -296,12 +285,9 @@ TEST(BezierShell, BendingConstantCurvaturePatchTestIsExact) {
   // Interior node in equilibrium (the boundary-integral curvature is shared
   // by neighbours), and each element's energy is the exact one.
   EXPECT_LT(f.segment<6>(48).norm(), 1e-12 * f.norm());
-  const double e = o.material.youngs_modulus_kpa, nu = o.material.poisson_ratio,
-               t = o.material.thickness_mm;
+  const double t = o.material.thickness_mm;
   const Eigen::Vector3d kv(kxx, kyy, 2 * kxy);
-  Eigen::Matrix3d d;
-  d << 1, nu, 0, nu, 1, 0, 0, 0, 0.5 * (1 - nu);
-  d *= e / (1 - nu * nu);
+  const Eigen::Matrix3d d = PlaneStress(o);
   const double exact = 0.5 * t * t * t / 12.0 * kv.dot(d * kv) * 3.0;
   EXPECT_NEAR(0.5 * q.dot(f), exact, 1e-12 * exact);
   for (int el = 0; el < shell.num_elements(); ++el) {
