@@ -18,6 +18,8 @@ struct ShellSurfacePoint {
          xi2 = 0;  // barycentric weights of the element's corners 1 and 2 (xi3 = 1 - xi1 - xi2)
 };
 
+// Keeps a pointer to the shell (which must outlive it); not thread-safe (the
+// per-state caches are filled by the const queries).
 class ShellMapping {
  public:
   // Points given directly. Throws arreg::Error for an element out of range or
