@@ -393,6 +393,30 @@ TEST(ShellMapping, VelocitiesDifferentiatePositionsAndForcesKeepVirtualPower) {
   }
 }
 
+TEST(ShellMapping, BadInputThrows) {
+  const Patch p = FlatPatch();
+  const GeneralisedState state = MakeState(p.positions, p.rotations);
+  const BezierShell shell(state, p.triangles, Material());
+  EXPECT_THROW(ShellMapping(shell, {{8, 0.2, 0.2}}), Error);  // no element 8
+  EXPECT_THROW(ShellMapping(shell, {{0, 0.7, 0.5}}), Error);  // outside the triangle
+  const ShellMapping mapping(shell, {{0, 0.2, 0.2}});
+  Eigen::VectorXd g = Eigen::VectorXd::Zero(state.num_dofs());
+  EXPECT_THROW(mapping.AddForces(state, RowMatX3d::Zero(2, 3), &g), Error);
+}
+
+TEST(ShellVertexRotations, NormalsFollowTheSurfaceAndBadIndicesThrow) {
+  const Patch p = CurvedPatch();
+  const std::vector<Eigen::Matrix3d> r = ShellVertexRotations(p.positions, p.triangles);
+  for (int v = 0; v < 9; ++v) {
+    EXPECT_LT((r[v].transpose() * r[v] - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+    EXPECT_NEAR(r[v].determinant(), 1.0, 1e-12);
+    // The cylinder's outward normal (sin s, 0, cos s) within the facets' spread.
+    const double s = std::atan2(p.positions(v, 0), p.positions(v, 2) + 3);
+    EXPECT_GT(r[v].col(2).dot(Eigen::Vector3d(std::sin(s), 0, std::cos(s))), 0.98) << v;
+  }
+  EXPECT_THROW(ShellVertexRotations(p.positions, {{0, 1, 9}}), Error);
+}
+
 TEST(ShellSupportTerm, GradientMatchesFiniteDifferences) {
   const Patch p = CurvedPatch();
   GeneralisedState state = MakeState(p.positions, p.rotations);
