@@ -3,8 +3,8 @@
 // patch tests through the generalised static solver, a free implicit-Euler run.
 #include "mechanics/bernstein_tet.h"
 
-#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
 
 #include <cmath>
 #include <memory>
@@ -70,9 +70,8 @@ TEST(BernsteinIntegrals, MultinomialFormulaAndBernsteinProducts) {
   }
   // A Bernstein basis sums to one and the gradients to zero anywhere.
   const Eigen::Vector4d L(0.1, 0.2, 0.3, 0.4);
-  const Eigen::Matrix<double, 4, 3> g = (Eigen::Matrix<double, 4, 3>() << -1, -1, -1, 1, 0, 0,
-                                         0, 1, 0, 0, 0, 1)
-                                            .finished();
+  const Eigen::Matrix<double, 4, 3> g =
+      (Eigen::Matrix<double, 4, 3>() << -1, -1, -1, 1, 0, 0, 0, 1, 0, 0, 0, 1).finished();
   for (int k = 1; k <= 3; ++k) {
     double sum = 0;
     for (const auto& alpha : BernsteinIndices(k)) sum += BernsteinValue(alpha, L);
@@ -107,7 +106,8 @@ TEST(HighOrderMesh, RaisedMeshSharesEdgeAndFacePoints) {
   for (int t = 0; t < T; ++t)
     for (size_t a = 0; a < indices.size(); ++a) {
       Eigen::RowVector3d p = Eigen::RowVector3d::Zero();
-      for (int i = 0; i < 4; ++i) p += indices[a][i] / 3.0 * tets.vertices.row(tets.tetrahedra(t, i));
+      for (int i = 0; i < 4; ++i)
+        p += indices[a][i] / 3.0 * tets.vertices.row(tets.tetrahedra(t, i));
       EXPECT_LT((cubic.nodes.row(cubic.elements(t, a)) - p).norm(), 1e-12);
     }
   EXPECT_THROW(RaiseTetMesh(tets, 4), Error);
@@ -176,6 +176,36 @@ TEST(BernsteinTet, DegreeOneIsTheP1Element) {
   m->term->AddHessian(m->state, 1.0, &h);
   p1.AddHessian(state, 1.0, &h1);
   EXPECT_LT((h.matrix() - h1.matrix()).norm(), 1e-12 * h1.matrix().norm());
+}
+
+// The quadratic field u = (0, x^2, 0) is exact at degree 2 and 3 (control values from
+// the polar form of x^2); its strain energy 1/2 u^T K u is mu int 2 x^2 dV in closed form.
+TEST(BernsteinTet, StiffnessIntegratesAQuadraticField) {
+  const Eigen::Vector3d size(30, 20, 20);
+  const TetMesh tets = SmallBox({3, 2, 2}, size);
+  Material material;
+  material.poisson_ratio = 0.3;
+  const double mu = material.LameMuKpa();
+  const double exact = 2.0 * mu * size.y() * size.z() * std::pow(size.x(), 3) / 3.0;
+  for (int k = 2; k <= 3; ++k) {
+    auto m = MakeModel(tets, k, material);
+    const auto indices = BernsteinIndices(k);
+    double energy = 0;
+    for (int e = 0; e < m->term->num_elements(); ++e) {
+      Eigen::VectorXd u = Eigen::VectorXd::Zero(3 * indices.size());
+      for (size_t a = 0; a < indices.size(); ++a) {
+        std::vector<double> args;  // x of the vertices spanning the control point
+        for (int i = 0; i < 4; ++i)
+          args.insert(args.end(), indices[a][i], tets.vertices(tets.tetrahedra(e, i), 0));
+        double polar = 0;  // polar form of x^2: mean of the pairwise products
+        for (int i = 0; i < k; ++i)
+          for (int j = i + 1; j < k; ++j) polar += args[i] * args[j];
+        u[3 * a + 1] = polar / (k * (k - 1) / 2);
+      }
+      energy += 0.5 * u.dot(m->term->element_stiffness(e) * u);
+    }
+    EXPECT_NEAR(energy / exact, 1.0, 1e-12) << "degree " << k;
+  }
 }
 
 TEST(BernsteinTet, RigidMotionsAreForceFree) {
@@ -253,8 +283,8 @@ TEST(BernsteinTet, DerivativeOfTheRotationMattersAboveDegreeOne) {
     Eigen::VectorXd u(3 * n);
     for (int a = 0; a < n; ++a) {
       const int node = m->mesh.elements(e, a);
-      u.segment<3>(3 * a) = R.transpose() * m->state.position(node) -
-                            m->mesh.nodes.row(node).transpose();
+      u.segment<3>(3 * a) =
+          R.transpose() * m->state.position(node) - m->mesh.nodes.row(node).transpose();
     }
     const Eigen::VectorXd f = m->term->element_stiffness(e) * u;
     for (int a = 0; a < n; ++a)
@@ -280,7 +310,8 @@ TEST(BernsteinTet, PatchTestReproducesLinearFields) {
     std::vector<int> interior;
     for (int i = 0; i < m->state.num_nodes(); ++i) {
       const Eigen::Vector3d X = m->state.rest_positions().row(i).transpose();
-      const bool boundary = (X.array().abs() < 1e-9).any() || ((X - size).array().abs() < 1e-9).any();
+      const bool boundary =
+          (X.array().abs() < 1e-9).any() || ((X - size).array().abs() < 1e-9).any();
       m->state.SetFixedTranslation(i, boundary);
       if (!boundary) interior.push_back(i);
     }
@@ -288,7 +319,8 @@ TEST(BernsteinTet, PatchTestReproducesLinearFields) {
     m->state.mutable_positions() = affine;
     const Eigen::VectorXd g0 = Gradient(m.get());
     double interior_residual = 0;
-    for (int i : interior) interior_residual = std::max(interior_residual, g0.segment<3>(3 * i).norm());
+    for (int i : interior)
+      interior_residual = std::max(interior_residual, g0.segment<3>(3 * i).norm());
     EXPECT_LT(interior_residual, 1e-10 * g0.norm()) << "degree " << k;
     m->state.mutable_positions() = Perturbed(affine, 1.0, 11);
     for (int i = 0; i < m->state.num_nodes(); ++i)
@@ -320,8 +352,7 @@ TEST(BernsteinTet, ImplicitEulerOnAFreeBodyKeepsMomentum) {
     const GeneralisedSummary s = euler.Step(&m->state, {m->term.get()}, {}, inertia);
     ASSERT_NE(s.status, StepStatus::kLinearSolveFailed) << s.message;
     m->term->Update(m->state);
-    const double total =
-        GeneralisedKineticEnergy(m->state, inertia) + m->term->Value(m->state);
+    const double total = GeneralisedKineticEnergy(m->state, inertia) + m->term->Value(m->state);
     EXPECT_LE(total, total0 * (1 + 1e-9));
     total0 = total;
   }
