@@ -36,7 +36,10 @@ void CheckTriangles(const GeneralisedState& state, const std::vector<Eigen::Vect
 
 // Appends a copy of `node` (rest and current position, rotations, velocities, fixed flags).
 int CopyNode(GeneralisedState* state, int node) {
-  const int n = state->AddFrameNode(Rest(*state, node), state->rest_rotation(node));
+  // Copies: AddFrameNode grows the vectors the references would point into.
+  const Eigen::Vector3d rest_position = Rest(*state, node);
+  const Eigen::Matrix3d rest_rotation = state->rest_rotation(node);
+  const int n = state->AddFrameNode(rest_position, rest_rotation);
   state->mutable_positions().row(n) = state->positions().row(node);
   state->mutable_velocities().row(n) = state->velocities().row(node);
   state->mutable_angular_velocities().row(n) = state->angular_velocities().row(node);
@@ -50,8 +53,7 @@ int CopyNode(GeneralisedState* state, int node) {
 // rest axes interpolated and re-orthonormalised, the current rotation the rest
 // one turned by the edge's relative rotation interpolated on SO(3).
 int InsertEdgeNode(GeneralisedState* state, int a, int b, double t) {
-  const Eigen::Matrix3d& ra = state->rest_rotation(a);
-  const Eigen::Matrix3d& rb = state->rest_rotation(b);
+  const Eigen::Matrix3d ra = state->rest_rotation(a), rb = state->rest_rotation(b);
   const Eigen::Vector3d z = ((1 - t) * ra.col(2) + t * rb.col(2)).normalized();
   Eigen::Vector3d x = (1 - t) * ra.col(0) + t * rb.col(0);
   x = (x - x.dot(z) * z).normalized();
@@ -214,16 +216,15 @@ void ShellCutOptions::Check() const {
 
 void ShellTearOptions::Check() const {
   if (!(strength_kpa > 0)) throw Error("", "shell_tear.strength_kpa", "must be > 0");
-  if (!(crack_length_factor > 0))
-    throw Error("", "shell_tear.crack_length_factor", "must be > 0");
+  if (!(crack_length_factor > 0)) throw Error("", "shell_tear.crack_length_factor", "must be > 0");
   if (!(max_edge_angle_deg > 0 && max_edge_angle_deg <= 90))
     throw Error("", "shell_tear.max_edge_angle_deg", "must be in (0, 90]");
   cut.Check();
 }
 
 ShellCutResult CutShell(GeneralisedState* state, std::vector<Eigen::Vector3i>* triangles,
-                        const std::vector<Eigen::Vector3d>& polyline, const Eigen::Vector3d& direction,
-                        const ShellCutOptions& options) {
+                        const std::vector<Eigen::Vector3d>& polyline,
+                        const Eigen::Vector3d& direction, const ShellCutOptions& options) {
   options.Check();
   if (polyline.size() < 2) throw Error("", "cut polyline", "needs at least 2 points");
   if (!(direction.norm() > 0)) throw Error("", "cut direction", "must be non-zero");
@@ -350,8 +351,9 @@ ShellCutResult SeparateEdges(GeneralisedState* state, std::vector<Eigen::Vector3
     for (int i = 0; i < 3; ++i) present[Key(tri[i], tri[(i + 1) % 3])] = 1;
   for (const auto& e : edges)
     if (!present.count(Key(e[0], e[1])))
-      throw Error("", "separated edge", std::to_string(e[0]) + "-" + std::to_string(e[1]) +
-                                            " is not an edge of the shell");
+      throw Error(
+          "", "separated edge",
+          std::to_string(e[0]) + "-" + std::to_string(e[1]) + " is not an edge of the shell");
   result.crack_edges = edges;
   Separate(state, triangles, edges, &result);
   return result;
@@ -456,16 +458,17 @@ ShellTearResult TearShell(GeneralisedState* state, std::vector<Eigen::Vector3i>*
   const std::vector<ShellStress> stress = NodeMembraneStresses(*state, *triangles, material);
   int node = -1;
   for (int n = 0; n < int(stress.size()); ++n)
-    if (stress[n].element >= 0 && (node < 0 || stress[n].principal_kpa > stress[node].principal_kpa))
+    if (stress[n].element >= 0 &&
+        (node < 0 || stress[n].principal_kpa > stress[node].principal_kpa))
       node = n;
   if (node < 0 || !(stress[node].principal_kpa > options.strength_kpa)) return result;
   result.node = node;
   result.principal_kpa = stress[node].principal_kpa;
   // Crack line: in the failing element's rest plane, perpendicular to sigma_P+.
   const Eigen::Vector3i& tri = (*triangles)[stress[node].element];
-  const Eigen::Vector3d normal =
-      (Rest(*state, tri[1]) - Rest(*state, tri[0])).cross(Rest(*state, tri[2]) - Rest(*state, tri[0]))
-          .normalized();
+  const Eigen::Vector3d normal = (Rest(*state, tri[1]) - Rest(*state, tri[0]))
+                                     .cross(Rest(*state, tri[2]) - Rest(*state, tri[0]))
+                                     .normalized();
   const Eigen::Vector3d crack = normal.cross(stress[node].direction_rest).normalized();
   result.crack_direction_rest = crack;
   const Eigen::Vector3d x = Rest(*state, node);
@@ -483,7 +486,8 @@ ShellTearResult TearShell(GeneralisedState* state, std::vector<Eigen::Vector3i>*
     for (const auto& [w, count] : edge_count) mean += (Rest(*state, w) - x).norm();
     mean /= edge_count.size();
     const double half = options.crack_length_factor * mean;
-    result.cut = CutShell(state, triangles, {x - half * crack, x + half * crack}, normal, options.cut);
+    result.cut =
+        CutShell(state, triangles, {x - half * crack, x + half * crack}, normal, options.cut);
   } else {
     // On each side of the node, the interior edge at the smallest angle to the
     // crack line (thesis fig. 6.13), within max_edge_angle_deg.
