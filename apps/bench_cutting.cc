@@ -7,13 +7,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <ctime>
 #include <nlohmann/json.hpp>
 #include <ostream>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "bench_util.h"
 #include "commands.h"
 #include "core/error.h"
 #include "core/file_util.h"
@@ -35,18 +35,6 @@ using cutting::CutStatus;
 using cutting::CutSummary;
 using cutting::CuttableMesh;
 using cutting::RemeshMethod;
-
-double ThreadCpuMs() {
-  timespec ts;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
-}
-
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n == 0 ? 0.0 : (n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]));
-}
 
 // The beam: 100 x 30 x 20 mm, 10 x 3 x 2 hexahedral cells of 6 tetrahedra
 // (132 vertices, 360 tetrahedra; the thesis beam has 131 and 371).

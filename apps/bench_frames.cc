@@ -1,8 +1,6 @@
 // `arreg bench frames`: time per implicit step of a 6-DOF frame model (frames
 // skinning samples, Saint Venant-Kirchhoff), a clamped beam sagging under its
 // weight, one thread; and how the cost grows with the number of samples.
-#include <time.h>
-
 #include <algorithm>
 #include <cstdio>
 #include <ostream>
@@ -12,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench_util.h"
 #include "commands.h"
 #include "core/error.h"
 #include "core/file_util.h"
@@ -39,18 +38,6 @@ struct FrameFigures {
   double ms_per_step_median = 0, cpu_ms_per_step_median = 0, assembly_ms = 0, solve_ms = 0;
   double tip_sag_mm = 0;
 };
-
-double ThreadCpuNow() {
-  timespec ts;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
-}
-
-// Middle value of a sample (upper middle for an even count).
-double MiddleValue(std::vector<double> v) {
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
 
 Eigen::Vector3i ParseGrid(const std::string& spec, const std::string& option) {
   static const std::regex grid(R"((\d+)x(\d+)x(\d+))");
@@ -87,9 +74,9 @@ FrameFigures RunBeam(const Eigen::Vector3i& cells, const FrameBenchSettings& s) 
     const std::vector<NodeInertia> inertia = CollectNodeInertia(state, {&model});
     GeneralisedImplicitEuler integrator(options);
     for (int step = 0; step < s.warmup + s.steps; ++step) {
-      const double cpu0 = ThreadCpuNow();
+      const double cpu0 = ThreadCpuMs();
       const GeneralisedSummary summary = integrator.Step(&state, {&model}, {&gravity}, inertia);
-      const double cpu_ms = ThreadCpuNow() - cpu0;
+      const double cpu_ms = ThreadCpuMs() - cpu0;
       ARREG_CHECK_INPUT(summary.status == StepStatus::kConverged, "",
                         "step " + std::to_string(step), "the implicit step failed");
       if (step < s.warmup) continue;
@@ -105,10 +92,10 @@ FrameFigures RunBeam(const Eigen::Vector3i& cells, const FrameBenchSettings& s) 
   }
   f.grid =
       std::to_string(cells.x()) + "x" + std::to_string(cells.y()) + "x" + std::to_string(cells.z());
-  f.ms_per_step_median = MiddleValue(wall);
-  f.cpu_ms_per_step_median = MiddleValue(cpu);
-  f.assembly_ms = MiddleValue(assembly);
-  f.solve_ms = MiddleValue(solve);
+  f.ms_per_step_median = Median(wall);
+  f.cpu_ms_per_step_median = Median(cpu);
+  f.assembly_ms = Median(assembly);
+  f.solve_ms = Median(solve);
   return f;
 }
 

@@ -1,9 +1,6 @@
 // `arreg bench mechanics`: time per implicit step of a spring-driven body like
 // the registration's (element rotations, assembly, solve), one thread.
-#include <time.h>
-
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <optional>
@@ -15,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench_util.h"
 #include "commands.h"
 #include "core/error.h"
 #include "core/file_util.h"
@@ -31,25 +29,11 @@ namespace {
 
 using namespace arreg::mechanics;
 
-double Median(std::vector<double> values) {
-  ARREG_ASSERT(!values.empty(), "");
-  std::sort(values.begin(), values.end());
-  const size_t n = values.size();
-  return n % 2 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
-}
-
 double Mean(const std::vector<double>& values) {
   ARREG_ASSERT(!values.empty(), "");
   double sum = 0;
   for (double v : values) sum += v;
   return sum / static_cast<double>(values.size());
-}
-
-// CPU time of the calling thread in ms: robust to other processes sharing the machine.
-double ThreadCpuMs() {
-  timespec ts;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
 }
 
 // "box:NXxNYxNZ" (Kuhn 6-tet split, 10 mm cells) or "box5:..." (5-tet split),
@@ -280,20 +264,6 @@ void Print(const std::string& mesh, const BenchSettings& s, const Figures& f) {
         f.solver_error_median, f.solver_error_max, f.newton_error_median, f.newton_error_max);
 }
 
-// Least-squares slope of log(cpu ms per step) over log(#tets): 1 = linear growth.
-double GrowthExponent(const std::vector<Figures>& series) {
-  double sx = 0, sy = 0, sxx = 0, sxy = 0;
-  const double n = static_cast<double>(series.size());
-  for (const Figures& f : series) {
-    const double x = std::log(f.tets), y = std::log(f.cpu_ms_per_step_median);
-    sx += x;
-    sy += y;
-    sxx += x * x;
-    sxy += x * y;
-  }
-  return (n * sxy - sx * sy) / (n * sxx - sx * sx);
-}
-
 std::vector<std::string> SplitCommas(const std::string& list) {
   std::vector<std::string> items;
   size_t start = 0;
@@ -414,7 +384,12 @@ int RunBenchMechanics(int argc, char** argv) {
       Print(box, s, figures.back());
       series.push_back(ToJson(box, s, figures.back()));
     }
-    const double exponent = GrowthExponent(figures);
+    std::vector<double> tets, cpu_ms;
+    for (const Figures& f : figures) {
+      tets.push_back(f.tets);
+      cpu_ms.push_back(f.cpu_ms_per_step_median);
+    }
+    const double exponent = GrowthExponent(tets, cpu_ms);
     std::printf("growth exponent (cpu ms per step ~ tets^k, least squares): k = %.2f\n", exponent);
     out["sweep"] = series;
     out["growth_exponent"] = exponent;

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "ar/pipeline/registration_pipeline.h"
+#include "bench_util.h"
 #include "commands.h"
 #include "core/error.h"
 #include "core/file_util.h"
@@ -19,13 +20,6 @@
 
 namespace arreg::cli {
 namespace {
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 // Sums the stage times of frames 1.. (frame 0 holds the one-off detection and attachment).
 class TimeCollector : public pipeline::FrameObserver {

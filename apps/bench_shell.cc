@@ -1,10 +1,7 @@
 // `arreg bench shell`: time per implicit step of a Bezier shell sheet (seed 000
 // section 5.3), with and without a mapped fine surface, and its growth with
 // the number of elements; one thread.
-#include <time.h>
-
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <ostream>
@@ -13,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "bench_util.h"
 #include "commands.h"
 #include "core/error.h"
 #include "core/file_util.h"
@@ -28,25 +26,6 @@ namespace arreg::cli {
 namespace {
 
 using namespace arreg::mechanics;
-
-double MedianOf(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-// CPU time of the calling thread in ms: robust to other processes sharing the machine.
-double ThreadCpuMs() {
-  timespec ts;
-  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
-}
-
-double NowMs() {
-  return std::chrono::duration<double, std::milli>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
 
 struct ShellBenchSettings {
   int elements = 1000;         // target element count (a near-square sheet)
@@ -152,17 +131,17 @@ ShellFigures RunSheet(const ShellBenchSettings& s) {
       projected.setZero();
       shell.AddGradient(state, &projected);
       update_ms.push_back(ThreadCpuMs() - u0);
-      const double t0 = NowMs(), c0 = ThreadCpuMs();
+      const double t0 = WallMs(), c0 = ThreadCpuMs();
       const GeneralisedSummary summary =
           integrator.Step(&state, {&shell}, {&gravity, &springs}, inertia);
-      const double t1 = NowMs(), c1 = ThreadCpuMs();
+      const double t1 = WallMs(), c1 = ThreadCpuMs();
       if (mapping.size() > 0) {
         mapping.Positions(state, &fine_x);
         mapping.Velocities(state, &fine_v);
         projected.setZero();
         mapping.AddForces(state, fine_f, &projected);
       }
-      const double t2 = NowMs(), c2 = ThreadCpuMs();
+      const double t2 = WallMs(), c2 = ThreadCpuMs();
       if (summary.status == StepStatus::kLinearSolveFailed)
         throw Error("", "arreg bench shell", "linear solve failed: " + summary.message);
       if (step < 2) {  // pattern, symbolic factorisation
@@ -178,16 +157,16 @@ ShellFigures RunSheet(const ShellBenchSettings& s) {
       f.newton_iterations += summary.newton_iterations;
     }
   }
-  f.ms_per_step_median = MedianOf(step_ms);
-  f.mapping_ms_median = MedianOf(map_ms);
-  f.cpu_ms_per_step_median = MedianOf(cpu_ms);
-  f.cpu_mapping_ms_median = MedianOf(cpu_map_ms);
-  f.cpu_element_ms_median = MedianOf(update_ms);
+  f.ms_per_step_median = Median(step_ms);
+  f.mapping_ms_median = Median(map_ms);
+  f.cpu_ms_per_step_median = Median(cpu_ms);
+  f.cpu_mapping_ms_median = Median(cpu_map_ms);
+  f.cpu_element_ms_median = Median(update_ms);
   std::vector<double> total(step_ms.size());
   for (size_t i = 0; i < step_ms.size(); ++i) total[i] = step_ms[i] + map_ms[i];
-  f.ms_per_step_with_fine_median = MedianOf(total);
-  f.assembly_ms_median = MedianOf(assembly_ms);
-  f.solve_ms_median = MedianOf(solve_ms);
+  f.ms_per_step_with_fine_median = Median(total);
+  f.assembly_ms_median = Median(assembly_ms);
+  f.solve_ms_median = Median(solve_ms);
   return f;
 }
 
@@ -266,8 +245,7 @@ int RunBenchShell(int argc, char** argv) {
   nlohmann::json out = ToJson(main);
   if (sweep) {
     nlohmann::json series = nlohmann::json::array();
-    double sx = 0, sy = 0, sxx = 0, sxy = 0;
-    int n = 0;
+    std::vector<double> elements, ms;
     for (int e : {100, 300, 1000, 3000, 10000}) {
       ShellBenchSettings t = s;
       t.elements = e;
@@ -276,14 +254,10 @@ int RunBenchShell(int argc, char** argv) {
       const ShellFigures f = RunSheet(t);
       Print(f);
       series.push_back(ToJson(f));
-      const double x = std::log(f.elements), y = std::log(f.ms_per_step_median);
-      sx += x;
-      sy += y;
-      sxx += x * x;
-      sxy += x * y;
-      ++n;
+      elements.push_back(f.elements);
+      ms.push_back(f.ms_per_step_median);
     }
-    const double exponent = (n * sxy - sx * sy) / (n * sxx - sx * sx);
+    const double exponent = GrowthExponent(elements, ms);
     std::printf("growth exponent (ms per step ~ elements^k, least squares): k = %.2f\n", exponent);
     out["sweep"] = series;
     out["growth_exponent"] = exponent;

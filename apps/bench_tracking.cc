@@ -1,9 +1,7 @@
 // `arreg bench tracking`: decode, SURF detection and LK tracking speed on one
 // video, single-threaded, medians over repeated runs.
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
-#include <ctime>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -11,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
+#include "bench_util.h"
 #include "commands.h"
 #include "core/error.h"
 #include "core/file_util.h"
@@ -29,26 +28,10 @@ bool g_use_cpu_clock = true;
 
 struct Clock {
   using time_point = double;  // milliseconds
-  static double now() {
-    if (g_use_cpu_clock) {
-      timespec ts;
-      clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-      return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
-    }
-    return std::chrono::duration<double, std::milli>(
-               std::chrono::steady_clock::now().time_since_epoch())
-        .count();
-  }
+  static double now() { return g_use_cpu_clock ? ThreadCpuMs() : WallMs(); }
 };
 
 double MillisecondsSince(double start_ms) { return Clock::now() - start_ms; }
-
-double Median(std::vector<double> values) {
-  ARREG_ASSERT(!values.empty(), "");
-  std::sort(values.begin(), values.end());
-  const size_t n = values.size();
-  return n % 2 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
-}
 
 }  // namespace
 
