@@ -1,5 +1,6 @@
 #include "mechanics/bernstein_tet.h"
 
+#include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
@@ -111,6 +112,34 @@ Eigen::MatrixXd BernsteinStiffnessMatrix(int degree, const Eigen::Matrix<double,
   return k;
 }
 
+Eigen::MatrixXd BernsteinMixedStiffnessMatrix(int degree, int pressure_degree,
+                                              const Eigen::Matrix<double, 4, 3>& g, double volume,
+                                              double lambda_kpa, double mu_kpa) {
+  ARREG_CHECK_INPUT(pressure_degree >= 0 && pressure_degree < degree, "", "pressure_degree",
+                    "must lie in [0, ", degree - 1, "] for degree ", degree, ", got ",
+                    pressure_degree);
+  const double kappa = lambda_kpa + 2.0 * mu_kpa / 3.0;
+  // Deviatoric part: lambda' = -2 mu / 3 leaves mu |dev eps|^2.
+  Eigen::MatrixXd k = BernsteinStiffnessMatrix(degree, g, volume, -2.0 * mu_kpa / 3.0, mu_kpa);
+  const std::vector<std::array<int, 4>> u_indices = BernsteinIndices(degree);
+  const std::vector<std::array<int, 4>> p_indices = BernsteinIndices(pressure_degree);
+  const int nu = static_cast<int>(u_indices.size()), np = static_cast<int>(p_indices.size());
+  Eigen::MatrixXd c = Eigen::MatrixXd::Zero(np, 3 * nu);
+  for (int q = 0; q < np; ++q)
+    for (int a = 0; a < nu; ++a)
+      for (int i = 0; i < 4; ++i)
+        if (u_indices[a][i] > 0)  // d B_a = k sum_i B^{k-1}_{a-e_i} g_i
+          c.block<1, 3>(q, 3 * a) +=
+              degree * BernsteinProductIntegral(p_indices[q], Lowered(u_indices[a], i), volume) *
+              g.row(i);
+  Eigen::MatrixXd m(np, np);
+  for (int q = 0; q < np; ++q)
+    for (int r = 0; r < np; ++r)
+      m(q, r) = BernsteinProductIntegral(p_indices[q], p_indices[r], volume);
+  k += kappa * c.transpose() * m.llt().solve(c);
+  return k;
+}
+
 Eigen::MatrixX3d BernsteinMeanGradients(int degree, const Eigen::Matrix<double, 4, 3>& g) {
   const std::vector<std::array<int, 4>> indices = BernsteinIndices(degree);
   Eigen::MatrixX3d c = Eigen::MatrixX3d::Zero(static_cast<int>(indices.size()), 3);
@@ -128,17 +157,21 @@ void BernsteinTetOptions::Check() const {
                     "must be at least 1, got ", polar_max_iterations);
   ARREG_CHECK_INPUT(std::isfinite(polar_tolerance) && polar_tolerance > 0, "", "polar_tolerance",
                     "must be positive and finite, got ", polar_tolerance);
+  ARREG_CHECK_INPUT(pressure_degree >= -1 && pressure_degree <= 2, "", "pressure_degree",
+                    "must be -1 (displacement) or a degree in [0, 2], got ", pressure_degree);
 }
 
 BernsteinTetTerm::BernsteinTetTerm(const HighOrderTetMesh* mesh, std::vector<int> node,
                                    const BernsteinTetOptions& options)
     : mesh_(mesh), node_(std::move(node)), options_(options) {
   options_.Check();
-  ARREG_CHECK_INPUT(static_cast<int>(node_.size()) == mesh_->num_nodes(), "", "node",
-                    "has ", node_.size(), " entries for ", mesh_->num_nodes(), " mesh nodes");
+  ARREG_CHECK_INPUT(static_cast<int>(node_.size()) == mesh_->num_nodes(), "", "node", "has ",
+                    node_.size(), " entries for ", mesh_->num_nodes(), " mesh nodes");
   const int k = mesh_->degree;
   indices_ = BernsteinIndices(k);
   const int n = static_cast<int>(indices_.size());
+  ARREG_CHECK_INPUT(options_.pressure_degree < k, "", "pressure_degree",
+                    "must be below the degree ", k, ", got ", options_.pressure_degree);
   ARREG_CHECK_INPUT(mesh_->elements.cols() == n, "", "elements", "has ", mesh_->elements.cols(),
                     " control points per element, degree ", k, " needs ", n);
   const double lambda = options_.material.LameLambdaKpa();
@@ -168,12 +201,15 @@ BernsteinTetTerm::BernsteinTetTerm(const HighOrderTetMesh* mesh, std::vector<int
     for (int a = 4; a < n; ++a) {
       Eigen::RowVector3d affine = Eigen::RowVector3d::Zero();
       for (int i = 0; i < 4; ++i) affine += indices_[a][i] * el.rest.row(i) / k;
-      ARREG_CHECK_INPUT((affine - el.rest.row(a)).norm() <= 1e-9 * size, "", "elements",
-                        "element ", e, " control point ", a,
+      ARREG_CHECK_INPUT((affine - el.rest.row(a)).norm() <= 1e-9 * size, "", "elements", "element ",
+                        e, " control point ", a,
                         " is off its affine Bezier point (curved rest geometry is not supported)");
     }
     el.mean_gradients = BernsteinMeanGradients(k, el.g);
-    el.stiffness = BernsteinStiffnessMatrix(k, el.g, el.volume, lambda, mu);
+    el.stiffness = options_.pressure_degree < 0
+                       ? BernsteinStiffnessMatrix(k, el.g, el.volume, lambda, mu)
+                       : BernsteinMixedStiffnessMatrix(k, options_.pressure_degree, el.g, el.volume,
+                                                       lambda, mu);
   }
   rotations_.assign(elements_.size(), Eigen::Matrix3d::Identity());
   quaternions_.assign(elements_.size(), Eigen::Quaterniond::Identity());
@@ -201,8 +237,7 @@ void BernsteinTetTerm::Update(const GeneralisedState& state) {
     }
     const Eigen::Matrix3d F = x.transpose() * el.mean_gradients;
     Eigen::Matrix3d R;
-    PolarRotation(F, &quaternions_[e], &R, options_.polar_max_iterations,
-                  options_.polar_tolerance);
+    PolarRotation(F, &quaternions_[e], &R, options_.polar_max_iterations, options_.polar_tolerance);
     rotations_[e] = R;
     y = x * R;  // rows (R^T x_alpha)^T
     for (int a = 0; a < n; ++a) u.segment<3>(3 * a) = (y.row(a) - el.rest.row(a)).transpose();
@@ -223,8 +258,8 @@ void BernsteinTetTerm::Update(const GeneralisedState& state) {
     const Eigen::Matrix3d Rs = R * Skew(s);
     Eigen::MatrixX3d& grad = gradients_[e];
     for (int a = 0; a < n; ++a)
-      grad.row(a) = (R * f.segment<3>(3 * a) - Rs * el.mean_gradients.row(a).transpose())
-                        .transpose();
+      grad.row(a) =
+          (R * f.segment<3>(3 * a) - Rs * el.mean_gradients.row(a).transpose()).transpose();
   }
   updated_state_ = &state;
   updated_version_ = state.topology_version();
@@ -233,8 +268,7 @@ void BernsteinTetTerm::Update(const GeneralisedState& state) {
 
 double BernsteinTetTerm::Value(const GeneralisedState& state) const { return energy_; }
 
-void BernsteinTetTerm::AddGradient(const GeneralisedState& state,
-                                   Eigen::VectorXd* gradient) const {
+void BernsteinTetTerm::AddGradient(const GeneralisedState& state, Eigen::VectorXd* gradient) const {
   const int n = static_cast<int>(indices_.size());
   for (size_t e = 0; e < elements_.size(); ++e)
     for (int a = 0; a < n; ++a)
@@ -300,7 +334,7 @@ void NodalForceTerm::AddGradient(const GeneralisedState& state, Eigen::VectorXd*
 RowMatX3d UniformTractionLoads(
     const HighOrderTetMesh& mesh,
     const std::function<bool(const Eigen::Vector3d&, const Eigen::Vector3d&,
-                              const Eigen::Vector3d&)>& select,
+                             const Eigen::Vector3d&)>& select,
     const Eigen::Vector3d& traction_kpa) {
   const int k = mesh.degree;
   const std::vector<std::array<int, 4>> indices = BernsteinIndices(k);

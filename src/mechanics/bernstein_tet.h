@@ -54,6 +54,19 @@ double BernsteinLumpedMass(int degree, double volume, double density);
 // G_ab = int grad B_a grad B_b^T dV in closed form; for k = 1 it is the P1 element's.
 Eigen::MatrixXd BernsteinStiffnessMatrix(int degree, const Eigen::Matrix<double, 4, 3>& g,
                                          double volume, double lambda_kpa, double mu_kpa);
+// Mixed u-p rest stiffness with a pressure discontinuous across elements, of degree m
+// (0 <= m < degree), condensed per element. The energy mu |dev eps|^2 + p tr(eps) -
+// p^2/(2 kappa) (kappa = lambda + 2 mu / 3, the bulk modulus) made stationary in p over
+// the element's Bernstein polynomials of degree m gives p = kappa P(div u), P the L2
+// projection onto them, and the stiffness K_dev + kappa C^T M^-1 C with
+// C_q,(alpha,j) = int B_q d_j B_alpha and M_qr = int B_q B_r: the volumetric energy sees
+// only the projected divergence, which frees the element from the incompressibility
+// constraints that lock it when nu -> 0.5. Exact condensation of the saddle point for
+// nu < 0.5 (kappa finite); at degree 1 (m = 0) div u is constant and K is the
+// displacement element's.
+Eigen::MatrixXd BernsteinMixedStiffnessMatrix(int degree, int pressure_degree,
+                                              const Eigen::Matrix<double, 4, 3>& g, double volume,
+                                              double lambda_kpa, double mu_kpa);
 // Mean gradients c_alpha = 1/V int grad B_alpha dV = k/C(k+2,3) sum_{i: alpha_i > 0} g_i
 // (n x 3): the volume-averaged deformation gradient is sum_alpha x_alpha c_alpha^T.
 Eigen::MatrixX3d BernsteinMeanGradients(int degree, const Eigen::Matrix<double, 4, 3>& g);
@@ -62,6 +75,9 @@ struct BernsteinTetOptions {
   Material material;               // E, nu, density (SI, tet_element.h); default soft tissue
   int polar_max_iterations = 20;   // cap of the polar iteration per element; default 20
   double polar_tolerance = 1e-12;  // stop when the rotation update angle (rad) is below; 1e-12
+  // -1: displacement formulation (default); 0 .. degree - 1: mixed u-p with a pressure
+  // of that degree, discontinuous and condensed per element (BernsteinMixedStiffnessMatrix).
+  int pressure_degree = -1;
   void Check() const;
 };
 
@@ -107,9 +123,7 @@ class BernsteinTetTerm : public GeneralisedEnergyTerm, public InertiaSource {
   const std::vector<int>& node() const { return node_; }
   const Eigen::MatrixXd& element_stiffness(int e) const { return elements_[e].stiffness; }
   double element_volume(int e) const { return elements_[e].volume; }
-  const Eigen::Matrix<double, 4, 3>& element_shape_gradients(int e) const {
-    return elements_[e].g;
-  }
+  const Eigen::Matrix<double, 4, 3>& element_shape_gradients(int e) const { return elements_[e].g; }
   const Eigen::Matrix3d& rotation(int e) const { return rotations_[e]; }
   // Deformed position and deformation gradient inside element e at barycentric L.
   Eigen::Vector3d Position(const GeneralisedState& state, int e, const Eigen::Vector4d& L) const;
@@ -118,8 +132,8 @@ class BernsteinTetTerm : public GeneralisedEnergyTerm, public InertiaSource {
 
  private:
   struct Element {
-    std::vector<int> nodes;    // state nodes of the control points
-    Eigen::MatrixX3d rest;     // X_alpha (n x 3)
+    std::vector<int> nodes;           // state nodes of the control points
+    Eigen::MatrixX3d rest;            // X_alpha (n x 3)
     Eigen::MatrixX3d mean_gradients;  // c_alpha (n x 3)
     Eigen::Matrix<double, 4, 3> g;    // grad L_i
     Eigen::MatrixXd stiffness;        // K (3n x 3n)
@@ -168,7 +182,7 @@ class NodalForceTerm : public GeneralisedEnergyTerm {
 RowMatX3d UniformTractionLoads(
     const HighOrderTetMesh& mesh,
     const std::function<bool(const Eigen::Vector3d&, const Eigen::Vector3d&,
-                              const Eigen::Vector3d&)>& select,
+                             const Eigen::Vector3d&)>& select,
     const Eigen::Vector3d& traction_kpa);
 
 }  // namespace arreg::mechanics

@@ -208,6 +208,76 @@ TEST(BernsteinTet, StiffnessIntegratesAQuadraticField) {
   }
 }
 
+// Mixed u-p (discontinuous pressure condensed per element): at degree 1, and with a
+// pressure of degree k - 1, the projection of div u is div u and K is the displacement
+// element's; with a lower pressure degree it is softer (positive semi-definite) and a
+// constant-strain patch stays exact.
+TEST(BernsteinTet, MixedStiffnessCondensesTheElementPressure) {
+  Material material;
+  material.poisson_ratio = 0.499;
+  const double lambda = material.LameLambdaKpa(), mu = material.LameMuKpa();
+  Eigen::Matrix<double, 4, 3> x;
+  x << 0, 0, 0, 10, 1, 0, 2, 9, 1, 1, 2, 8;
+  TetRestData rest;
+  ASSERT_TRUE(ComputeTetRestData(x.row(0), x.row(1), x.row(2), x.row(3), material, &rest));
+  for (int k = 1; k <= 3; ++k) {
+    const Eigen::MatrixXd K =
+        BernsteinStiffnessMatrix(k, rest.shape_gradients, rest.volume_mm3, lambda, mu);
+    const Eigen::MatrixXd top =
+        BernsteinMixedStiffnessMatrix(k, k - 1, rest.shape_gradients, rest.volume_mm3, lambda, mu);
+    EXPECT_LT((top - K).norm(), 1e-10 * K.norm()) << k;
+    if (k == 1) continue;
+    // Zero-energy modes of one element: the 6 rigid ones, and with a constant pressure
+    // 3 more: the deviator vanishes on the dilation and the 3 special conformal fields
+    // 2 (b.x) x - |x|^2 b (quadratic), of which one pressure constrains one combination.
+    // They do not match across elements (the assembled meshes below are definite).
+    for (int m = 0; m < k - 1; ++m) {
+      const Eigen::MatrixXd Km =
+          BernsteinMixedStiffnessMatrix(k, m, rest.shape_gradients, rest.volume_mm3, lambda, mu);
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Km);
+      const double top = eig.eigenvalues().maxCoeff();
+      int zero = 0;
+      for (int i = 0; i < Km.rows(); ++i) {
+        EXPECT_GT(eig.eigenvalues()[i], -1e-9 * top);
+        zero += eig.eigenvalues()[i] < 1e-9 * top;
+      }
+      EXPECT_EQ(zero, m == 0 ? 9 : 6) << "P" << k << "/P" << m;
+      EXPECT_LT((Km - K).trace(), -1e-3 * K.trace());  // the volumetric constraint relaxed
+    }
+  }
+  // Patch test of P2/P0 and P3/P1 through the solver: a constant strain stays exact.
+  const Eigen::Vector3d size(20, 20, 20);
+  const TetMesh tets = SmallBox({2, 2, 2}, size);
+  Eigen::Matrix3d A;
+  A << 1.05, 0.02, 0, 0.01, 0.97, 0.03, 0, 0.02, 1.04;
+  for (const auto& [k, m] : {std::pair{2, 0}, std::pair{3, 1}}) {
+    auto model = std::make_unique<Model>();
+    model->mesh = RaiseTetMesh(tets, k);
+    model->node = AddHighOrderNodes(model->mesh, &model->state);
+    BernsteinTetOptions options;
+    options.pressure_degree = m;  // default material: the patch needs no incompressibility
+    model->term = std::make_unique<BernsteinTetTerm>(&model->mesh, model->node, options);
+    const RowMatX3d affine = model->state.rest_positions() * A.transpose();
+    for (int i = 0; i < model->state.num_nodes(); ++i) {
+      const Eigen::Vector3d X = model->state.rest_positions().row(i).transpose();
+      model->state.SetFixedTranslation(
+          i, (X.array().abs() < 1e-9).any() || ((X - size).array().abs() < 1e-9).any());
+    }
+    model->state.mutable_positions() = Perturbed(affine, 0.5, 2);
+    for (int i = 0; i < model->state.num_nodes(); ++i)
+      if (model->state.fixed_translation(i))
+        model->state.mutable_positions().row(i) = affine.row(i);
+    GeneralisedStaticSolver solver({});
+    EXPECT_EQ(solver.Solve(&model->state, {model->term.get()}).status, StepStatus::kConverged);
+    EXPECT_LT((model->state.positions() - affine).cwiseAbs().maxCoeff(), 1e-8) << k << "/" << m;
+  }
+  const HighOrderTetMesh quadratic = RaiseTetMesh(tets, 2);
+  BernsteinTetOptions bad;
+  bad.pressure_degree = 2;  // not below the degree
+  EXPECT_THROW(BernsteinTetTerm(&quadratic, std::vector<int>(quadratic.num_nodes(), 0), bad),
+               Error);
+}
+
 TEST(BernsteinTet, RigidMotionsAreForceFree) {
   const TetMesh tets = SmallBox({2, 1, 1}, {20, 10, 10});
   for (int k = 1; k <= 3; ++k) {
