@@ -294,20 +294,21 @@ GeneralisedSummary GeneralisedImplicitEuler::SubStep(
       theta[n] = theta_line[n].squaredNorm() == 0 ? d : LogSO3(ExpSO3(d) * ExpSO3(theta_line[n]));
     }
   };
-  // q and J_l^-1 at the current configuration.
-  const auto step_coordinates = [&]() {
+  // q, and J_l^-1 where the gradient and Hessian need it (Phi alone does not), at the
+  // current configuration.
+  const auto step_coordinates = [&](bool jacobians) {
     for (int n = 0; n < nn; ++n) {
       const int o = state->dof_offset(n);
       q.segment<3>(o) = (state->position(n) - start.positions.row(n).transpose());
       if (!state->is_frame(n)) continue;
       q.segment<3>(o + 3) = theta[n];
-      jinv[n] = LeftJacobianInverseSO3(theta[n]);
+      if (jacobians) jinv[n] = LeftJacobianInverseSO3(theta[n]);
     }
   };
   // Phi at the current configuration (terms updated there); the damping terms vanish at
   // the step's start.
   const auto potential = [&](bool at_start) {
-    step_coordinates();
+    step_coordinates(false);
     double phi = 0;
     for (int n = 0; n < nn; ++n) {
       const int o = state->dof_offset(n);
@@ -340,7 +341,7 @@ GeneralisedSummary GeneralisedImplicitEuler::SubStep(
     // grad Phi: grad E + inertia + damping (rotation rows through J_l^-T).
     GradientOf(*state, terms, &gradient_);
     if (it > 0) {
-      step_coordinates();
+      step_coordinates(true);
     } else {
       q.setZero();
       std::fill(jinv.begin(), jinv.end(), Eigen::Matrix3d::Identity());
@@ -452,7 +453,7 @@ GeneralisedSummary GeneralisedImplicitEuler::SubStep(
   }
 
   // Velocities: v = (x - x_n)/h; omega from the angular momentum L_{n+1} = I_n theta / h.
-  step_coordinates();
+  step_coordinates(false);
   RowMatX3d& v = state->mutable_velocities();
   RowMatX3d& w = state->mutable_angular_velocities();
   for (int n = 0; n < nn; ++n) {

@@ -66,6 +66,7 @@ void GeneralisedSystem::Build(const GeneralisedState& state,
   }
   outer[n] = k;
   SetZero();
+  dirichlet_mask_.clear();
   built_ = true;
   topology_version_ = state.topology_version();
   terms_.assign(terms.begin(), terms.end());
@@ -114,18 +115,25 @@ void GeneralisedSystem::AddBlock(int node_a, int node_b,
 
 void GeneralisedSystem::ApplyDirichlet(const std::vector<char>& fixed_dof_mask) {
   ARREG_ASSERT(static_cast<int>(fixed_dof_mask.size()) == num_dofs(), "");
-  if (std::find(fixed_dof_mask.begin(), fixed_dof_mask.end(), 1) == fixed_dof_mask.end()) return;
-  const int n = num_dofs();
-  const int* outer = matrix_.outerIndexPtr();
-  const int* inner = matrix_.innerIndexPtr();
-  double* v = values();
-  for (int col = 0; col < n; ++col) {
-    const bool col_fixed = fixed_dof_mask[col] != 0;
-    for (int k = outer[col]; k < outer[col + 1]; ++k) {
-      const int row = inner[k];
-      if (col_fixed || fixed_dof_mask[row]) v[k] = (row == col) ? 1.0 : 0.0;
+  if (fixed_dof_mask != dirichlet_mask_) {
+    dirichlet_mask_ = fixed_dof_mask;
+    dirichlet_zero_.clear();
+    dirichlet_one_.clear();
+    const int n = num_dofs();
+    const int* outer = matrix_.outerIndexPtr();
+    const int* inner = matrix_.innerIndexPtr();
+    for (int col = 0; col < n; ++col) {
+      const bool col_fixed = fixed_dof_mask[col] != 0;
+      for (int k = outer[col]; k < outer[col + 1]; ++k) {
+        const int row = inner[k];
+        if (col_fixed || fixed_dof_mask[row])
+          (row == col ? dirichlet_one_ : dirichlet_zero_).push_back(k);
+      }
     }
   }
+  double* v = values();
+  for (const int k : dirichlet_zero_) v[k] = 0.0;
+  for (const int k : dirichlet_one_) v[k] = 1.0;
 }
 
 void ProjectToPsd(Eigen::Ref<Eigen::MatrixXd> block) {

@@ -53,7 +53,8 @@ class GeneralisedSystem : public HessianSink {
 
   // Replaces every row and column of a fixed DOF (mask from
   // GeneralisedState::FixedDofMask) by those of the identity: Dirichlet
-  // elimination with zero increment.
+  // elimination with zero increment. The affected entries are found once per
+  // mask and pattern (a scan of every nonzero), then only they are written.
   void ApplyDirichlet(const std::vector<char>& fixed_dof_mask);
 
  private:
@@ -63,6 +64,9 @@ class GeneralisedSystem : public HessianSink {
   std::vector<int> neighbour_begin_;  // CSR over nodes: neighbours of b in [begin[b], begin[b+1])
   std::vector<int> neighbours_;       // sorted neighbour node indices (b included)
   std::vector<int> neighbour_slot_;   // BlockSlot of (neighbours_[k], b)
+  std::vector<char> dirichlet_mask_;  // the mask dirichlet_zero_/_one_ were found for
+  std::vector<int> dirichlet_zero_;   // value indices set to 0 (fixed row or column, off-diagonal)
+  std::vector<int> dirichlet_one_;    // value indices of fixed diagonal entries (set to 1)
   bool built_ = false;
   std::uint64_t topology_version_ = 0;
   std::vector<const GeneralisedEnergyTerm*> terms_;  // the terms of the last Build
