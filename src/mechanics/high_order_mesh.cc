@@ -29,8 +29,8 @@ HighOrderTetMesh RaiseTetMesh(const TetMesh& mesh, int degree) {
   for (int t = 0; t < mesh.num_tetrahedra(); ++t)
     for (int c = 0; c < 4; ++c)
       ARREG_CHECK_INPUT(mesh.tetrahedra(t, c) >= 0 && mesh.tetrahedra(t, c) < num_vertices, "",
-                        "tetrahedra", "element ", t, " has vertex index ",
-                        mesh.tetrahedra(t, c), " out of range");
+                        "tetrahedra", "element ", t, " has vertex index ", mesh.tetrahedra(t, c),
+                        " out of range");
   const std::vector<std::array<int, 4>> indices = BernsteinIndices(degree);
   HighOrderTetMesh out;
   out.degree = degree;
