@@ -435,17 +435,45 @@ ShellStress ElementMembraneStress(const GeneralisedState& state, const Eigen::Ve
 
 std::vector<ShellStress> NodeMembraneStresses(const GeneralisedState& state,
                                               const std::vector<Eigen::Vector3i>& triangles,
-                                              const ShellMaterial& material) {
-  std::vector<ShellStress> nodes(state.num_nodes());
-  std::vector<char> any(state.num_nodes(), 0);
+                                              const ShellMaterial& material,
+                                              NodeStressSmoothing smoothing) {
+  const int n_nodes = state.num_nodes();
+  std::vector<ShellStress> nodes(n_nodes), most(n_nodes);
+  std::vector<Eigen::Matrix3d> sum(n_nodes, Eigen::Matrix3d::Zero());
+  std::vector<double> weight(n_nodes, 0);
   for (size_t t = 0; t < triangles.size(); ++t) {
     ShellStress s = ElementMembraneStress(state, triangles[t], material);
     s.element = int(t);
+    // The element's tensor in rest coordinates from its principal pair.
+    const Eigen::Vector3d& d1 = s.direction_rest;
+    const Eigen::Vector3d x0 = Rest(state, triangles[t][0]);
+    const Eigen::Vector3d normal =
+        (Rest(state, triangles[t][1]) - x0).cross(Rest(state, triangles[t][2]) - x0);
+    const double area = 0.5 * normal.norm();
+    const Eigen::Vector3d d2 = normal.normalized().cross(d1);
+    const Eigen::Matrix3d tensor =
+        s.principal_kpa * d1 * d1.transpose() + s.minor_kpa * d2 * d2.transpose();
     for (int i = 0; i < 3; ++i) {
       const int n = triangles[t][i];
-      if (!any[n] || s.principal_kpa > nodes[n].principal_kpa) nodes[n] = s;
-      any[n] = 1;
+      if (most[n].element < 0 || s.principal_kpa > most[n].principal_kpa) most[n] = s;
+      sum[n] += area * tensor;
+      weight[n] += area;
     }
+  }
+  if (smoothing == NodeStressSmoothing::kMaxElement) return most;
+  for (int n = 0; n < n_nodes; ++n) {
+    if (most[n].element < 0) continue;
+    // Principal values of the mean tensor in the node's rest tangent plane.
+    const Eigen::Matrix3d r = state.rest_rotation(n);
+    const Eigen::Matrix2d plane =
+        r.leftCols<2>().transpose() * (sum[n] / weight[n]) * r.leftCols<2>();
+    const double s11 = plane(0, 0), s22 = plane(1, 1), s12 = 0.5 * (plane(0, 1) + plane(1, 0));
+    const double mean = 0.5 * (s11 + s22), radius = std::hypot(0.5 * (s11 - s22), s12);
+    const double theta = 0.5 * std::atan2(2 * s12, s11 - s22);  // eq. 6.1
+    nodes[n].principal_kpa = mean + radius;                     // eq. 6.2
+    nodes[n].minor_kpa = mean - radius;
+    nodes[n].direction_rest = std::cos(theta) * r.col(0) + std::sin(theta) * r.col(1);
+    nodes[n].element = most[n].element;
   }
   return nodes;
 }
@@ -455,58 +483,80 @@ ShellTearResult TearShell(GeneralisedState* state, std::vector<Eigen::Vector3i>*
   options.Check();
   CheckTriangles(*state, *triangles);
   ShellTearResult result;
-  const std::vector<ShellStress> stress = NodeMembraneStresses(*state, *triangles, material);
-  int node = -1;
+  const std::vector<ShellStress> stress =
+      NodeMembraneStresses(*state, *triangles, material, options.smoothing);
+  // Candidates above the strength, most stressed first.
+  std::vector<int> candidates;
   for (int n = 0; n < int(stress.size()); ++n)
-    if (stress[n].element >= 0 &&
-        (node < 0 || stress[n].principal_kpa > stress[node].principal_kpa))
-      node = n;
-  if (node < 0 || !(stress[node].principal_kpa > options.strength_kpa)) return result;
-  result.node = node;
-  result.principal_kpa = stress[node].principal_kpa;
-  // Crack line: in the failing element's rest plane, perpendicular to sigma_P+.
-  const Eigen::Vector3i& tri = (*triangles)[stress[node].element];
-  const Eigen::Vector3d normal = (Rest(*state, tri[1]) - Rest(*state, tri[0]))
-                                     .cross(Rest(*state, tri[2]) - Rest(*state, tri[0]))
-                                     .normalized();
-  const Eigen::Vector3d crack = normal.cross(stress[node].direction_rest).normalized();
-  result.crack_direction_rest = crack;
-  const Eigen::Vector3d x = Rest(*state, node);
-
-  // Edges at the node; an edge of one triangle is on the boundary (already open).
-  std::map<int, int> edge_count;  // other end -> triangles sharing (node, other)
-  for (const Eigen::Vector3i& t : *triangles)
-    for (int i = 0; i < 3; ++i)
-      if (t[i] == node) {
-        ++edge_count[t[(i + 1) % 3]];
-        ++edge_count[t[(i + 2) % 3]];
+    if (stress[n].element >= 0 && stress[n].principal_kpa > options.strength_kpa &&
+        !(options.skip_held_nodes && state->fixed_translation(n)))
+      candidates.push_back(n);
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [&](int a, int b) { return stress[a].principal_kpa > stress[b].principal_kpa; });
+  for (const int node : candidates) {
+    // Crack line: in the plane of the principal direction (the failing
+    // element's rest plane, or the node's tangent plane), perpendicular to sigma_P+.
+    const Eigen::Vector3i& tri = (*triangles)[stress[node].element];
+    Eigen::Vector3d normal = (Rest(*state, tri[1]) - Rest(*state, tri[0]))
+                                 .cross(Rest(*state, tri[2]) - Rest(*state, tri[0]))
+                                 .normalized();
+    if (options.smoothing == NodeStressSmoothing::kAreaAverage)
+      normal = state->rest_rotation(node).col(2);
+    const Eigen::Vector3d crack = normal.cross(stress[node].direction_rest).normalized();
+    const Eigen::Vector3d x = Rest(*state, node);
+    // Edges at the node; an edge of one triangle is on the boundary (already open).
+    std::map<int, int> edge_count;  // other end -> triangles sharing (node, other)
+    for (const Eigen::Vector3i& t : *triangles)
+      for (int i = 0; i < 3; ++i)
+        if (t[i] == node) {
+          ++edge_count[t[(i + 1) % 3]];
+          ++edge_count[t[(i + 2) % 3]];
+        }
+    ShellCutResult cut;
+    if (options.snap) {
+      double mean = 0;
+      for (const auto& [w, count] : edge_count) mean += (Rest(*state, w) - x).norm();
+      mean /= edge_count.size();
+      const double half = options.crack_length_factor * mean;
+      // On copies: a line along the boundary opens nothing, and then the next candidate is tried.
+      GeneralisedState trial_state = *state;
+      std::vector<Eigen::Vector3i> trial_triangles = *triangles;
+      cut = CutShell(&trial_state, &trial_triangles, {x - half * crack, x + half * crack}, normal,
+                     options.cut);
+      if (cut.duplicated_nodes == 0) continue;
+      *state = std::move(trial_state);
+      *triangles = std::move(trial_triangles);
+    } else {
+      // On each side of the node, the interior edge at the smallest angle to the
+      // crack line (thesis fig. 6.13), within max_edge_angle_deg.
+      const double min_cos = std::cos(options.max_edge_angle_deg * M_PI / 180);
+      std::vector<std::array<int, 2>> edges;
+      for (const double sign : {1.0, -1.0}) {
+        int best = -1;
+        double best_cos = min_cos;
+        for (const auto& [w, count] : edge_count) {
+          if (count < 2) continue;
+          const double cosine = sign * crack.dot((Rest(*state, w) - x).normalized());
+          if (cosine > best_cos) best_cos = cosine, best = w;
+        }
+        if (best >= 0) edges.push_back({node, best});
       }
-  if (options.snap) {
-    double mean = 0;
-    for (const auto& [w, count] : edge_count) mean += (Rest(*state, w) - x).norm();
-    mean /= edge_count.size();
-    const double half = options.crack_length_factor * mean;
-    result.cut =
-        CutShell(state, triangles, {x - half * crack, x + half * crack}, normal, options.cut);
-  } else {
-    // On each side of the node, the interior edge at the smallest angle to the
-    // crack line (thesis fig. 6.13), within max_edge_angle_deg.
-    const double min_cos = std::cos(options.max_edge_angle_deg * M_PI / 180);
-    std::vector<std::array<int, 2>> edges;
-    for (const double sign : {1.0, -1.0}) {
-      int best = -1;
-      double best_cos = min_cos;
-      for (const auto& [w, count] : edge_count) {
-        if (count < 2) continue;
-        const double cosine = sign * crack.dot((Rest(*state, w) - x).normalized());
-        if (cosine > best_cos) best_cos = cosine, best = w;
-      }
-      if (best >= 0) edges.push_back({node, best});
+      // An interior node needs an edge on each side to open; SeparateEdges tells.
+      if (edges.empty()) continue;
+      GeneralisedState trial_state = *state;
+      std::vector<Eigen::Vector3i> trial_triangles = *triangles;
+      cut = SeparateEdges(&trial_state, &trial_triangles, edges);
+      if (cut.duplicated_nodes == 0) continue;
+      *state = std::move(trial_state);
+      *triangles = std::move(trial_triangles);
     }
-    if (edges.empty()) return result;
-    result.cut = SeparateEdges(state, triangles, edges);
+    result.torn = true;
+    result.node = node;
+    result.principal_kpa = stress[node].principal_kpa;
+    result.crack_direction_rest = crack;
+    result.cut = std::move(cut);
+    return result;
   }
-  result.torn = result.cut.duplicated_nodes > 0;
   return result;
 }
 

@@ -62,8 +62,8 @@ struct ShellCutResult {
 // Throws arreg::Error for bad options, a polyline with fewer than 2 points, a
 // zero direction, or a triangle index that is not a frame node.
 ShellCutResult CutShell(GeneralisedState* state, std::vector<Eigen::Vector3i>* triangles,
-                        const std::vector<Eigen::Vector3d>& polyline, const Eigen::Vector3d& direction,
-                        const ShellCutOptions& options);
+                        const std::vector<Eigen::Vector3d>& polyline,
+                        const Eigen::Vector3d& direction, const ShellCutOptions& options);
 
 // Separates the shell along existing edges (pairs of node ids), duplicating
 // nodes as CutShell does. Used by tearing without snapping.
@@ -94,15 +94,33 @@ struct ShellStress {
 };
 ShellStress ElementMembraneStress(const GeneralisedState& state, const Eigen::Vector3i& triangle,
                                   const ShellMaterial& material);
+// How element stresses become a node's stress.
+enum class NodeStressSmoothing {
+  // The thesis's choice: the stress of the incident element with the largest
+  // sigma_P+. The nodes of the most stressed element tie, and at a node on a
+  // symmetry line the direction is one side's.
+  kMaxElement,
+  // The area-weighted mean of the incident elements' stress tensors (in
+  // rest coordinates, principal values in the node's rest tangent plane):
+  // symmetric where the mesh and load are, and a node with a less stressed
+  // neighbour ranks below one surrounded by stress.
+  kAreaAverage,
+};
 // Per node (num_nodes() entries; element -1 and zero stress for nodes of no
-// triangle): the stress of the incident element with the largest sigma_P+
-// (the thesis's smoothing by the maximal element value at the node).
+// triangle). direction_rest lies in the node's rest tangent plane (the z axis
+// of its rest rotation) for kAreaAverage; element is the most stressed
+// incident element in both modes.
 std::vector<ShellStress> NodeMembraneStresses(const GeneralisedState& state,
                                               const std::vector<Eigen::Vector3i>& triangles,
-                                              const ShellMaterial& material);
+                                              const ShellMaterial& material,
+                                              NodeStressSmoothing smoothing);
 
 struct ShellTearOptions {
   double strength_kpa = 1.0;  // ultimate tensile strength sigma_f (kPa, > 0, default 1)
+  NodeStressSmoothing smoothing = NodeStressSmoothing::kAreaAverage;  // default kAreaAverage
+  // Nodes with a fixed translation (grips, supports) do not fail: their
+  // stress is the support's concentration, not the material's (default true).
+  bool skip_held_nodes = true;
   // false: separate the existing edges from the failing node that follow the
   // crack line best (the thesis's choice: smallest angle between the crack
   // direction and the edge); true: cut through the elements along the crack
@@ -120,20 +138,21 @@ struct ShellTearOptions {
 
 struct ShellTearResult {
   bool torn = false;
-  int node = -1;              // the failing node (largest sigma_P+ above the strength)
-  double principal_kpa = 0;   // its sigma_P+
+  int node = -1;             // the failing node (largest sigma_P+ above the strength)
+  double principal_kpa = 0;  // its sigma_P+
   Eigen::Vector3d crack_direction_rest = Eigen::Vector3d::Zero();  // unit, perpendicular to
                                                                    // the principal direction
   ShellCutResult cut;
 };
 
-// One fracture step: finds the node with the largest sigma_P+; when it exceeds
-// options.strength_kpa, fractures there along the line through the node
-// perpendicular to its principal direction (in the rest configuration: the
-// stretch's principal directions are those of the rest element, so the crack
-// line is mapped to the rest surface exactly, the thesis's fig. 6.14). Call
-// again after re-solving; torn = false when nothing exceeds the strength or
-// no edge follows the crack line.
+// One fracture step: among the nodes whose sigma_P+ (smoothed per
+// options.smoothing) exceeds options.strength_kpa, most stressed first, the
+// first that opens fractures along the line through it perpendicular to its
+// principal direction (in the rest configuration: the stretch's principal
+// directions are those of the rest element, so the crack line is mapped to
+// the rest surface exactly, the thesis's fig. 6.14). A node opens when the
+// crack duplicates a node (an interior node needs an edge on each side without
+// snapping). Call again after re-solving; torn = false when no node fails.
 ShellTearResult TearShell(GeneralisedState* state, std::vector<Eigen::Vector3i>* triangles,
                           const ShellMaterial& material, const ShellTearOptions& options);
 

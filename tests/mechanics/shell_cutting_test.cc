@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <iomanip>
 #include <map>
 #include <numeric>
 #include <random>
@@ -29,7 +30,8 @@ using Triangles = std::vector<Eigen::Vector3i>;
 // split by its (1, 1) diagonal; nodes with identity rest rotations (z up).
 // Cells for which `keep(i, j)` is false are left out (nodes of no cell too).
 template <class Keep>
-void MakeSheet(int nx, int ny, double cell, Keep keep, GeneralisedState* state, Triangles* tris) {
+void MakeSheet(int nx, int ny, double cell, Keep keep, GeneralisedState* state, Triangles* tris,
+               bool anti_diagonal = false) {
   std::vector<int> id((nx + 1) * (ny + 1), -1);
   auto node = [&](int i, int j) {
     int& n = id[j * (nx + 1) + i];
@@ -40,12 +42,18 @@ void MakeSheet(int nx, int ny, double cell, Keep keep, GeneralisedState* state, 
     for (int i = 0; i < nx; ++i) {
       if (!keep(i, j)) continue;
       const int a = node(i, j), b = node(i + 1, j), c = node(i + 1, j + 1), d = node(i, j + 1);
-      tris->push_back({a, b, c});
-      tris->push_back({a, c, d});
+      if (anti_diagonal) {
+        tris->push_back({a, b, d});
+        tris->push_back({b, c, d});
+      } else {
+        tris->push_back({a, b, c});
+        tris->push_back({a, c, d});
+      }
     }
 }
 void MakeSheet(int nx, int ny, double cell, GeneralisedState* state, Triangles* tris) {
-  MakeSheet(nx, ny, cell, [](int, int) { return true; }, state, tris);
+  MakeSheet(
+      nx, ny, cell, [](int, int) { return true; }, state, tris);
 }
 
 Eigen::Vector3d Rest(const GeneralisedState& s, int n) {
@@ -203,8 +211,7 @@ TEST(ShellCutting, StraightCutSeparatesAndPiecesMoveIndependently) {
       EXPECT_EQ(result.element_children.size(), 48u);
     }
     BezierShell shell(s, tris, ShellOptions());
-    for (int e = 0; e < shell.num_elements(); ++e)
-      EXPECT_LT(shell.ElementEnergy(s, e), 1e-20) << e;
+    for (int e = 0; e < shell.num_elements(); ++e) EXPECT_LT(shell.ElementEnergy(s, e), 1e-20) << e;
     for (int n = 0; n < s.num_nodes(); ++n) {
       const double x = s.rest_positions()(n, 0);
       if (x < 1e-9) {
@@ -290,7 +297,9 @@ TEST(ShellCutting, RemappedPointsKeepTheirPlaceAndSide) {
   for (int p = 0; p < moved.size(); ++p) {
     const Eigen::Vector3i t = tris[moved.point(p).element];
     const double x = fine(p, 0);
-    const double line_y = x < 12 ? 3 + 6 * (x + 1) / 13 : x < 22 ? 9 - (x - 12) / 10 : 8 + 8 * (x - 22) / 9;
+    const double line_y = x < 12   ? 3 + 6 * (x + 1) / 13
+                          : x < 22 ? 9 - (x - 12) / 10
+                                   : 8 + 8 * (x - 22) / 9;
     // Snapping moves the crack up to snap_fraction x 5 mm (diagonals 7 mm) from the line.
     if (std::abs(fine(p, 1) - line_y) < 1.5) continue;
     const int side = fine(p, 1) > line_y;
@@ -303,8 +312,8 @@ TEST(ShellCutting, RemappedPointsKeepTheirPlaceAndSide) {
 // straight or curved, projected along directions up to ~8 deg off the normal,
 // on sheets moved rigidly): after every cut the mesh is a consistently
 // oriented manifold with boundary, the rest area is kept to 1e-9, every
-// triangle keeps its orientation and its smallest angle above 0.5 deg; each cut sheet builds a BezierShell with zero energy
-// in every element.
+// triangle keeps its orientation and its smallest angle above 0.5 deg; each cut sheet builds a
+// BezierShell with zero energy in every element.
 TEST(ShellCutting, RandomCutsKeepTheShellValid) {
   std::mt19937 rng(35);
   std::uniform_real_distribution<double> u(0, 1);
@@ -352,10 +361,10 @@ TEST(ShellCutting, RandomCutsKeepTheShellValid) {
     for (int e = 0; e < shell.num_elements(); ++e)
       worst_energy = std::max(worst_energy, shell.ElementEnergy(s, e));
   }
-  std::printf("%d cuts: smallest angle %.2f deg, smallest area %.3g mm^2 (cell triangle 12.5), "
-              "area error %.2g, largest element energy at rest %.2g uJ, up to %d triangles\n",
-              cuts, worst_angle * 180 / M_PI, worst_area, worst_area_error, worst_energy,
-              max_triangles);
+  std::printf(
+      "%d cuts: smallest angle %.2f deg, smallest area %.3g mm^2 (cell triangle 12.5), "
+      "area error %.2g, largest element energy at rest %.2g uJ, up to %d triangles\n",
+      cuts, worst_angle * 180 / M_PI, worst_area, worst_area_error, worst_energy, max_triangles);
   EXPECT_LT(worst_area_error, 1e-9);
   EXPECT_LT(worst_energy, 1e-18);
   // Each split keeps angles above ~asin(snap_fraction) of its parent's, but
@@ -365,5 +374,192 @@ TEST(ShellCutting, RandomCutsKeepTheShellValid) {
   EXPECT_GT(worst_angle * 180 / M_PI, 0.5);
 }
 
+// Pulls a sheet by displacing its held nodes (displacement(rest position) at
+// load factor 0 < lambda <= 1 in `steps` steps), solving statically and
+// tearing (TearShell) after each solve until nothing exceeds the strength.
+struct Tear {
+  int node;
+  Eigen::Vector3d rest, direction;
+  double lambda;
+};
+template <class Held, class Displacement>
+std::vector<Tear> PullAndTear(GeneralisedState* s, Triangles* tris, Held held, Displacement disp,
+                              int steps, const ShellTearOptions& tear, int max_tears) {
+  for (int n = 0; n < s->num_nodes(); ++n)
+    if (held(Rest(*s, n))) {
+      s->SetFixedTranslation(n, true);
+      s->SetFixedRotation(n, true);
+    }
+  std::vector<Tear> tears;
+  const BezierShellOptions options = ShellOptions();
+  for (int step = 1; step <= steps; ++step) {
+    const double lambda = double(step) / steps;
+    for (int n = 0; n < s->num_nodes(); ++n)
+      if (s->fixed_translation(n))
+        s->mutable_positions().row(n) = (Rest(*s, n) + lambda * disp(Rest(*s, n))).transpose();
+    for (;;) {
+      BezierShell shell(*s, *tris, options);
+      GeneralisedStaticSolver solver({});
+      const GeneralisedSummary summary = solver.Solve(s, {&shell});
+      EXPECT_EQ(summary.status, StepStatus::kConverged) << summary.message;
+      if (summary.status != StepStatus::kConverged || int(tears.size()) >= max_tears) return tears;
+      const ShellTearResult r = TearShell(s, tris, options.material, tear);
+      if (!r.torn) break;
+      EXPECT_EQ(ManifoldProblem(*tris), "");
+      tears.push_back({r.node, Rest(*s, r.node), r.crack_direction_rest, lambda});
+    }
+  }
+  return tears;
+}
+
+// The current sheet seen from +z, each triangle filled by sigma_P+ / strength
+// (white 0 .. red >= 1), into `name` under $ARREG_SHELL_CUTTING_SVG_DIR when
+// it is set (the pictures of docs/shell-cutting.md).
+void WriteSvg(const GeneralisedState& s, const Triangles& tris, double strength,
+              const std::string& name) {
+  const char* dir = std::getenv("ARREG_SHELL_CUTTING_SVG_DIR");
+  if (!dir) return;
+  Eigen::Vector2d lo(INFINITY, INFINITY), hi(-INFINITY, -INFINITY);
+  for (const auto& t : tris)
+    for (int i = 0; i < 3; ++i) {
+      lo = lo.cwiseMin(s.positions().row(t[i]).head<2>().transpose());
+      hi = hi.cwiseMax(s.positions().row(t[i]).head<2>().transpose());
+    }
+  const double scale = 400 / (hi - lo).maxCoeff(), margin = 10;
+  const std::string path = std::string(dir) + "/" + name;
+  std::ofstream out(path + ".tmp");
+  ASSERT_TRUE(out.good()) << path << ".tmp: cannot write (ARREG_SHELL_CUTTING_SVG_DIR)";
+  out << std::fixed << std::setprecision(1);
+  out << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\""
+      << int(scale * (hi.x() - lo.x()) + 2 * margin) << "\" height=\""
+      << int(scale * (hi.y() - lo.y()) + 2 * margin) << "\">\n"
+      << "<g stroke=\"#555\" stroke-width=\"0.4\">\n";
+  for (const auto& t : tris) {
+    const double r = std::clamp(
+        ElementMembraneStress(s, t, ShellOptions().material).principal_kpa / strength, 0.0, 1.0);
+    const int g = int(255 * (1 - r));
+    out << "<polygon fill=\"rgb(255," << g << "," << g << ")\" points=\"";
+    for (int i = 0; i < 3; ++i)
+      out << margin + scale * (s.positions()(t[i], 0) - lo.x()) << ","
+          << margin + scale * (hi.y() - s.positions()(t[i], 1)) << (i < 2 ? " " : "");
+    out << "\"/>\n";
+  }
+  out << "</g>\n";
+  out << "</svg>\n";
+  out.close();
+  std::rename((path + ".tmp").c_str(), path.c_str());
+}
+
+// Thesis figs. 6.12, 6.15: an L-shaped membrane (24 mm arms 12 mm wide, 2 mm
+// cells cut by the anti-diagonal so that no edge leaves the corner along the
+// bisector) whose arm ends are bent apart symmetrically (bottom end down, left
+// end left, 4 mm). The largest principal stress is at the re-entrant corner
+// (12, 12), with the principal direction across the bisector, so the crack
+// starts there and runs along the bisector towards (0, 0): with snapping
+// (cut through the elements) along it, without snapping along the existing
+// edges at the smallest angle (horizontal or vertical, 45 deg off).
+TEST(ShellTearing, LShapedMembraneTearsFromTheReentrantCorner) {
+  for (const bool snap : {false, true}) {
+    GeneralisedState s;
+    Triangles tris;
+    MakeSheet(
+        12, 12, 2.0, [](int i, int j) { return i < 6 || j < 6; }, &s, &tris, true);
+    ShellTearOptions tear;
+    tear.strength_kpa = 0.8;
+    tear.snap = snap;
+    auto held = [](const Eigen::Vector3d& x) { return x.x() > 24 - 1e-9 || x.y() > 24 - 1e-9; };
+    auto disp = [](const Eigen::Vector3d& x) {
+      return x.x() > 24 - 1e-9 ? Eigen::Vector3d(0, -4, 0) : Eigen::Vector3d(-4, 0, 0);
+    };
+    const std::vector<Tear> tears = PullAndTear(&s, &tris, held, disp, 8, tear, 4);
+    ASSERT_FALSE(tears.empty());
+    for (const Tear& t : tears)
+      std::printf("L %s: tear at (%.2f, %.2f) direction (%.2f, %.2f) load %.3f\n",
+                  snap ? "snapped" : "edges", t.rest.x(), t.rest.y(), t.direction.x(),
+                  t.direction.y(), t.lambda);
+    EXPECT_LT((tears[0].rest - Eigen::Vector3d(12, 12, 0)).norm(), 1e-9);
+    const Eigen::Vector3d bisector = Eigen::Vector3d(1, 1, 0).normalized();
+    EXPECT_GT(std::abs(tears[0].direction.dot(bisector)), std::cos(20 * M_PI / 180));
+    // The crack runs into the material from the corner: the later tears within
+    // 8 mm of the corner are at its tips, at or below-left of the corner,
+    // within one cell (2.8 mm) of the bisector (edges) or on it (snapped). (A
+    // second crack starts later at a held arm end, where the arm's in-plane
+    // bending is as large as at the corner.)
+    int along = 0;
+    for (size_t k = 1; k < tears.size(); ++k) {
+      const Eigen::Vector3d r = tears[k].rest - Eigen::Vector3d(12, 12, 0);
+      if (r.norm() > 8) continue;
+      ++along;
+      EXPECT_LT(r.x() + r.y(), 1e-9) << k;
+      EXPECT_LT(std::abs(r.x() - r.y()) / std::sqrt(2.0), snap ? 0.3 : 2.9) << k;
+    }
+    EXPECT_GE(along, 1);
+    WriteSvg(s, tris, tear.strength_kpa, snap ? "shell_tear_l_snapped.svg" : "shell_tear_l.svg");
+  }
+}
+
+// Thesis fig. 6.16: a 40 x 24 mm sheet (2 mm cells) with a 12 mm precut along
+// y = 12 from x = 14 to 26, held at the bottom and pulled 3 mm up at the top:
+// the stress peaks at the precut's tips, the sheet tears from a tip along the
+// precut's line (perpendicular to the pull).
+TEST(ShellTearing, PrecutSheetTearsFromTheTips) {
+  for (const bool snap : {false, true}) {
+    GeneralisedState s;
+    Triangles tris;
+    MakeSheet(20, 12, 2.0, &s, &tris);
+    const ShellCutResult precut = CutShell(&s, &tris, {{14, 12, 0}, {26, 12, 0}}, {0, 0, 1}, {});
+    ASSERT_EQ(precut.crack_edges.size(), 6u);
+    ShellTearOptions tear;
+    tear.strength_kpa = 0.8;
+    tear.snap = snap;
+    auto held = [](const Eigen::Vector3d& x) { return x.y() < 1e-9 || x.y() > 24 - 1e-9; };
+    auto disp = [](const Eigen::Vector3d& x) {
+      return x.y() > 12 ? Eigen::Vector3d(0, 3, 0) : Eigen::Vector3d::Zero();
+    };
+    const std::vector<Tear> tears = PullAndTear(&s, &tris, held, disp, 8, tear, 4);
+    ASSERT_FALSE(tears.empty());
+    for (const Tear& t : tears)
+      std::printf("precut %s: tear at (%.2f, %.2f) direction (%.2f, %.2f) load %.3f\n",
+                  snap ? "snapped" : "edges", t.rest.x(), t.rest.y(), t.direction.x(),
+                  t.direction.y(), t.lambda);
+    const double to_tip = std::min((tears[0].rest - Eigen::Vector3d(14, 12, 0)).norm(),
+                                   (tears[0].rest - Eigen::Vector3d(26, 12, 0)).norm());
+    EXPECT_LT(to_tip, 1e-9);
+    EXPECT_GT(std::abs(tears[0].direction.x()), std::cos(20 * M_PI / 180));
+    // The tears extend the precut outwards along its line.
+    for (const Tear& t : tears) {
+      EXPECT_NEAR(t.rest.y(), 12, 1e-9);
+      EXPECT_TRUE(t.rest.x() <= 14 + 1e-9 || t.rest.x() >= 26 - 1e-9) << t.rest.x();
+    }
+    WriteSvg(s, tris, tear.strength_kpa,
+             snap ? "shell_tear_precut_snapped.svg" : "shell_tear_precut.svg");
+  }
+}
+
+// Eq. 6.1-6.2 against a homogeneous stretch: e = S - I = diag(eps, 0) along a
+// direction at 30 deg gives sigma_P+ = E eps / (1 - nu^2) along it and
+// sigma_P- = nu E eps / (1 - nu^2), at every node in both smoothing modes,
+// unchanged by a rigid rotation of the current state.
+TEST(ShellTearing, PrincipalStressOfAHomogeneousStretch) {
+  GeneralisedState s;
+  Triangles tris;
+  MakeSheet(3, 3, 2.0, &s, &tris);
+  const double eps = 0.05, angle = 30 * M_PI / 180;
+  const Eigen::Vector3d a(std::cos(angle), std::sin(angle), 0);
+  const Eigen::Matrix3d stretch = Eigen::Matrix3d::Identity() + eps * a * a.transpose();
+  const Eigen::Matrix3d r = ExpSO3({0.4, 1.2, -0.3});
+  for (int n = 0; n < s.num_nodes(); ++n) {
+    s.mutable_positions().row(n) = (r * stretch * Rest(s, n)).transpose();
+    s.mutable_rotation(n) = r;
+  }
+  const ShellMaterial m = ShellOptions().material;
+  const double c = m.youngs_modulus_kpa / (1 - m.poisson_ratio * m.poisson_ratio);
+  for (const auto smoothing : {NodeStressSmoothing::kMaxElement, NodeStressSmoothing::kAreaAverage})
+    for (const ShellStress& st : NodeMembraneStresses(s, tris, m, smoothing)) {
+      EXPECT_NEAR(st.principal_kpa, c * eps, 1e-12);
+      EXPECT_NEAR(st.minor_kpa, c * m.poisson_ratio * eps, 1e-12);
+      EXPECT_NEAR(std::abs(st.direction_rest.dot(a)), 1, 1e-12);
+    }
+}
 }  // namespace
 }  // namespace arreg::mechanics
