@@ -435,15 +435,36 @@ BezierShell::BezierShell(const GeneralisedState& state,
                          const BezierShellOptions& options)
     : options_(options) {
   options_.Check();
+  ReplaceElements(state, triangles, {});
+}
+
+void BezierShell::ReplaceElements(const GeneralisedState& state,
+                                  const std::vector<Eigen::Vector3i>& triangles,
+                                  const std::vector<char>& reuse) {
   const ShellMaterial& mat = options_.material;
   Eigen::Matrix3d d;
   d << 1, mat.poisson_ratio, 0, mat.poisson_ratio, 1, 0, 0, 0, 0.5 * (1 - mat.poisson_ratio);
   d *= mat.youngs_modulus_kpa / (1 - mat.poisson_ratio * mat.poisson_ratio);
   const double t = mat.thickness_mm;
-  elements_.reserve(triangles.size());
+  std::vector<Element> built;
+  built.reserve(triangles.size());
   for (size_t e = 0; e < triangles.size(); ++e) {
     const std::string where = "shell triangle " + std::to_string(e);
     Element el;
+    if (e < reuse.size() && reuse[e] && e < elements_.size()) {
+      // Rest data depend only on the corners' rest positions and rotations.
+      el = elements_[e];
+      for (int i = 0; i < 3; ++i) {
+        const int a = el.nodes[i], b = triangles[e][i];
+        if (b < 0 || b >= state.num_nodes() || !state.is_frame(b) ||
+            state.rest_positions().row(a) != state.rest_positions().row(b) ||
+            state.rest_rotation(a) != state.rest_rotation(b))
+          throw Error("", where, "reused with corners of other rest positions or rotations");
+      }
+      el.nodes = triangles[e];
+      built.push_back(el);
+      continue;
+    }
     el.nodes = triangles[e];
     Eigen::Vector3d x[3], m[3];
     for (int i = 0; i < 3; ++i) {
@@ -620,8 +641,12 @@ BezierShell::BezierShell(const GeneralisedState& state,
     kb += tri_area * bending * edge_curvature.transpose() * d * edge_curvature;
     el.k = lmap.transpose() * k30 * lmap + kb;
     el.k = 0.5 * (el.k + el.k.transpose()).eval();
-    elements_.push_back(el);
+    built.push_back(el);
   }
+  elements_.swap(built);
+  cached_gradient_.clear();
+  cached_hessian_.clear();
+  cached_state_ = StateSnapshot();
 }
 
 void BezierShell::AppendStencils(std::vector<std::vector<int>>* stencils) const {

@@ -102,6 +102,14 @@ class BezierShell : public GeneralisedEnergyTerm, public InertiaSource {
   BezierShell(const GeneralisedState& state, const std::vector<Eigen::Vector3i>& triangles,
               const BezierShellOptions& options);
 
+  // After a topology change (mechanics/shell_cutting.h): the element list
+  // becomes `triangles`; element e with reuse[e] set keeps its rest data (its
+  // corners may be replaced by nodes of the same rest position and rotation,
+  // else arreg::Error), the others are built as by the constructor. Call the
+  // solver's InvalidatePattern() afterwards.
+  void ReplaceElements(const GeneralisedState& state, const std::vector<Eigen::Vector3i>& triangles,
+                       const std::vector<char>& reuse);
+
   std::string name() const override { return "bezier_shell"; }
   void AppendStencils(std::vector<std::vector<int>>* stencils) const override;
   // The first of AddGradient / AddHessian at a state computes every element's
