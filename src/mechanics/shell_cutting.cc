@@ -208,6 +208,13 @@ double MinAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen:
 
 }  // namespace
 
+std::vector<char> ShellCutResult::ReusableElements(int num_new_elements) const {
+  std::vector<char> reuse(num_new_elements, 0);
+  for (size_t e = 0; e < element_children.size() && int(e) < num_new_elements; ++e)
+    reuse[e] = element_children[e].size() == 1;
+  return reuse;
+}
+
 void ShellCutOptions::Check() const {
   if (!(snap_fraction >= 0 && snap_fraction < 0.5))
     throw Error("", "shell_cut.snap_fraction", "must be in [0, 0.5)");

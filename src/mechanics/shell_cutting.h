@@ -4,9 +4,10 @@
 // material's strength (thesis section 6.2).
 //
 // A cut edits the triangle list and adds frame nodes to the state; the caller
-// then builds a new BezierShell from the state and the new triangles (the rest
-// control net of an element depends only on its corners' rest positions and
-// rest rotations, so untouched elements get their old rest data back exactly)
+// then updates the BezierShell with ReplaceElements(state, triangles,
+// cut.ReusableElements(triangles.size())) (the rest control net of an element
+// depends only on its corners' rest positions and rest rotations, so elements
+// that were not split keep their rest data; a new BezierShell gives the same)
 // and re-anchors what pointed into the old shell with the returned mapping
 // (RemapSurfacePoint, RemapShellMapping; springs on nodes with node_copies).
 #pragma once
@@ -46,6 +47,10 @@ struct ShellCutResult {
   std::vector<std::array<int, 2>> crack_edges;     // separated edges (node ids before duplication)
   int duplicated_nodes = 0;                        // nodes added along the crack
   bool changed() const { return !crack_edges.empty() || !inserted_nodes.empty(); }
+  // Per element of the new list: 1 where it is an old element that was not
+  // split (its corners at most replaced by copies), whose rest data
+  // BezierShell::ReplaceElements can keep.
+  std::vector<char> ReusableElements(int num_new_elements) const;
 };
 
 // Cuts the shell along `polyline` (>= 2 points, rest coordinates, on or near

@@ -283,6 +283,16 @@ TEST(ShellCutting, RemappedPointsKeepTheirPlaceAndSide) {
       CutShell(&s, &tris, {{-1, 3, 0}, {12, 9, 0}, {22, 8, 0}, {31, 16, 0}}, {0, 0, 1}, {});
   ASSERT_TRUE(cut.changed());
   BezierShell after(s, tris, ShellOptions());
+  // Replacing the elements in place (unsplit ones keep their rest data) gives
+  // the same shell as building it anew.
+  BezierShell replaced = before;
+  replaced.ReplaceElements(s, tris, cut.ReusableElements(int(tris.size())));
+  ASSERT_EQ(replaced.num_elements(), after.num_elements());
+  for (int e = 0; e < after.num_elements(); ++e) {
+    EXPECT_EQ(replaced.triangle(e), after.triangle(e));
+    EXPECT_EQ(replaced.local_stiffness(e), after.local_stiffness(e)) << e;
+    EXPECT_EQ(replaced.rest_area(e), after.rest_area(e)) << e;
+  }
   for (int e = 0; e < after.num_elements(); ++e) EXPECT_LT(after.ElementEnergy(s, e), 1e-18) << e;
   const ShellMapping moved = RemapShellMapping(mapping, cut, after, s);
   RowMatX3d x_before, x_after;
