@@ -386,7 +386,8 @@ TEST(ShellCutting, RandomCutsKeepTheShellValid) {
 
 // Pulls a sheet by displacing its held nodes (displacement(rest position) at
 // load factor 0 < lambda <= 1 in `steps` steps), solving statically and
-// tearing (TearShell) after each solve until nothing exceeds the strength.
+// tearing (TearShell) after each solve until nothing exceeds the strength;
+// prints each tear under `label`.
 struct Tear {
   int node;
   Eigen::Vector3d rest, direction;
@@ -394,7 +395,8 @@ struct Tear {
 };
 template <class Held, class Displacement>
 std::vector<Tear> PullAndTear(GeneralisedState* s, Triangles* tris, Held held, Displacement disp,
-                              int steps, const ShellTearOptions& tear, int max_tears) {
+                              int steps, const ShellTearOptions& tear, int max_tears,
+                              const char* label) {
   for (int n = 0; n < s->num_nodes(); ++n)
     if (held(Rest(*s, n))) {
       s->SetFixedTranslation(n, true);
@@ -417,6 +419,9 @@ std::vector<Tear> PullAndTear(GeneralisedState* s, Triangles* tris, Held held, D
       if (!r.torn) break;
       EXPECT_EQ(ManifoldProblem(*tris), "");
       tears.push_back({r.node, Rest(*s, r.node), r.crack_direction_rest, lambda});
+      std::printf("%s %s: tear at (%.2f, %.2f) direction (%.2f, %.2f) load %.3f\n", label,
+                  tear.snap ? "snapped" : "edges", tears.back().rest.x(), tears.back().rest.y(),
+                  r.crack_direction_rest.x(), r.crack_direction_rest.y(), lambda);
     }
   }
   return tears;
@@ -481,12 +486,8 @@ TEST(ShellTearing, LShapedMembraneTearsFromTheReentrantCorner) {
     auto disp = [](const Eigen::Vector3d& x) {
       return x.x() > 24 - 1e-9 ? Eigen::Vector3d(0, -4, 0) : Eigen::Vector3d(-4, 0, 0);
     };
-    const std::vector<Tear> tears = PullAndTear(&s, &tris, held, disp, 8, tear, 4);
+    const std::vector<Tear> tears = PullAndTear(&s, &tris, held, disp, 8, tear, 4, "L");
     ASSERT_FALSE(tears.empty());
-    for (const Tear& t : tears)
-      std::printf("L %s: tear at (%.2f, %.2f) direction (%.2f, %.2f) load %.3f\n",
-                  snap ? "snapped" : "edges", t.rest.x(), t.rest.y(), t.direction.x(),
-                  t.direction.y(), t.lambda);
     EXPECT_LT((tears[0].rest - Eigen::Vector3d(12, 12, 0)).norm(), 1e-9);
     const Eigen::Vector3d bisector = Eigen::Vector3d(1, 1, 0).normalized();
     EXPECT_GT(std::abs(tears[0].direction.dot(bisector)), std::cos(20 * M_PI / 180));
@@ -526,12 +527,8 @@ TEST(ShellTearing, PrecutSheetTearsFromTheTips) {
     auto disp = [](const Eigen::Vector3d& x) {
       return x.y() > 12 ? Eigen::Vector3d(0, 3, 0) : Eigen::Vector3d::Zero();
     };
-    const std::vector<Tear> tears = PullAndTear(&s, &tris, held, disp, 8, tear, 4);
+    const std::vector<Tear> tears = PullAndTear(&s, &tris, held, disp, 8, tear, 4, "precut");
     ASSERT_FALSE(tears.empty());
-    for (const Tear& t : tears)
-      std::printf("precut %s: tear at (%.2f, %.2f) direction (%.2f, %.2f) load %.3f\n",
-                  snap ? "snapped" : "edges", t.rest.x(), t.rest.y(), t.direction.x(),
-                  t.direction.y(), t.lambda);
     const double to_tip = std::min((tears[0].rest - Eigen::Vector3d(14, 12, 0)).norm(),
                                    (tears[0].rest - Eigen::Vector3d(26, 12, 0)).norm());
     EXPECT_LT(to_tip, 1e-9);
