@@ -318,6 +318,41 @@ TEST(ShellCutting, RemappedPointsKeepTheirPlaceAndSide) {
   }
 }
 
+// A curved sheet (a 60 deg arc of a cylinder of radius 20 mm about the y
+// axis, 10 x 4 cells), cut along y = 8.5 seen from above: two pieces, the rest
+// corner-triangle area kept, every element of the new shell at zero energy.
+// A second layer 10 mm above (a fold) is left whole by a cut drawn on the
+// lower layer (max_depth_mm = 5).
+TEST(ShellCutting, CurvedSheetAndFoldedLayers) {
+  GeneralisedState s;
+  Triangles tris;
+  MakeSheet(10, 4, 1.0, &s, &tris);
+  const int layer = s.num_nodes();
+  RowMatX3d rest(2 * layer, 3);
+  for (int n = 0; n < layer; ++n) {
+    const double phi = (s.rest_positions()(n, 0) / 10 - 0.5) * M_PI / 3;
+    rest.row(n) << 20 * std::sin(phi), 5 * s.rest_positions()(n, 1), 20 * std::cos(phi) - 20;
+    rest.row(layer + n) = rest.row(n) + Eigen::RowVector3d(0, 0, 10);
+  }
+  Triangles both = tris;
+  for (const auto& t : tris) both.push_back(t + Eigen::Vector3i::Constant(layer));
+  const std::vector<Eigen::Matrix3d> rotations = ShellVertexRotations(rest, both);
+  GeneralisedState curved;
+  for (int n = 0; n < rest.rows(); ++n) curved.AddFrameNode(rest.row(n).transpose(), rotations[n]);
+  const double area = TotalRestArea(curved, both);
+  const ShellCutResult cut =
+      CutShell(&curved, &both, {{-15, 8.5, -1}, {15, 8.5, -1}}, {0, 0, 1}, ShellCutOptions{});
+  EXPECT_EQ(ManifoldProblem(both), "");
+  EXPECT_NEAR(TotalRestArea(curved, both), area, 1e-12 * area);
+  int pieces = 0;
+  Pieces(curved, both, &pieces);
+  EXPECT_EQ(pieces, 3);  // the lower layer in two, the upper one whole
+  for (const int n : cut.inserted_nodes) EXPECT_LT(curved.rest_positions()(n, 2), 1.0);
+  BezierShell shell(curved, both, ShellOptions());
+  for (int e = 0; e < shell.num_elements(); ++e)
+    EXPECT_LT(shell.ElementEnergy(curved, e), 1e-18) << e;
+}
+
 // Thousands of random cuts (100 sheets of 4 x 4 cells of 5 mm, 20 cuts each,
 // straight or curved, projected along directions up to ~8 deg off the normal,
 // on sheets moved rigidly): after every cut the mesh is a consistently
