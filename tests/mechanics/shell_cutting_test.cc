@@ -227,7 +227,7 @@ TEST(ShellCutting, StraightCutSeparatesAndPiecesMoveIndependently) {
     const GeneralisedSummary summary = solver.Solve(&s, {&shell});
     ASSERT_EQ(summary.status, StepStatus::kConverged) << summary.message;
     if (!cut) {
-      // Uncut: 5 mm on 30 mm stretches the sheet (order E t A eps^2 / 2 ~ 10 uJ).
+      // Uncut: 5 mm on 30 mm stretches the sheet (order E t A eps^2 / 2 ~ 40 uJ).
       EXPECT_GT(summary.energy, 1.0);
       continue;
     }
@@ -235,8 +235,8 @@ TEST(ShellCutting, StraightCutSeparatesAndPiecesMoveIndependently) {
     for (int n = 0; n < s.num_nodes(); ++n) {
       const double x = s.rest_positions()(n, 0);
       const double dx = s.positions()(n, 0) - x;
-      if (x < 13 - 1e-9) EXPECT_NEAR(dx, 0, 1e-6) << n;
-      if (x > 13 + 1e-9) EXPECT_NEAR(dx, 5, 1e-6) << n;
+      if (std::abs(x - 13) < 1e-9) continue;  // on the cut: either side
+      EXPECT_NEAR(dx, x < 13 ? 0 : 5, 1e-6) << n;
     }
   }
 }
