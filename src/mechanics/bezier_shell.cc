@@ -260,8 +260,6 @@ Jet2 sqrt(const Jet2& a) {
 Jet2 Inverse(const Jet2& a) {
   return Chain(a, 1.0 / a.v, -1.0 / (a.v * a.v), 2.0 / (a.v * a.v * a.v));
 }
-Jet2 operator/(const Jet2& a, const Jet2& b) { return a * Inverse(b); }
-double Inverse(double a) { return 1.0 / a; }
 
 // h(u) = atan(sqrt(u)) / sqrt(u) and its first two derivatives (series near 0).
 std::array<double, 3> AtanRatioDerivatives(double u) {
@@ -280,7 +278,6 @@ std::array<double, 3> AtanRatioDerivatives(double u) {
   const double h2 = (-1.0 / ((1.0 + u) * (1.0 + u)) - 3.0 * h1) / (2.0 * u);
   return {h, h1, h2};
 }
-double AtanRatio(double u) { return AtanRatioDerivatives(u)[0]; }
 Jet2 AtanRatio(const Jet2& u) {
   const auto d = AtanRatioDerivatives(u.v);
   return Chain(u, d[0], d[1], d[2]);
