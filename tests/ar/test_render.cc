@@ -1,15 +1,20 @@
 // Tests of the software rasterizer against analytic pixel counts and geometry.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 #include <random>
 
 #include "ar/pipeline/overlay.h"
 #include "ar/render/coverage_layer.h"
 #include "ar/render/rasterizer.h"
+#include "core/error.h"
 #include "core/mesh_generators.h"
 #include "core/mesh_ops.h"
+#include "core/scene.h"
 
 namespace arreg::render {
 namespace {
@@ -456,6 +461,7 @@ TEST(CoverageLayer, OverlayMatchesTheSupersampledReference) {
   cv::Mat out[2];
   for (int k = 0; k < 2; ++k) {
     pipeline::RenderStageOptions o;
+    o.style = pipeline::OverlayStyle::kTint;  // the surface fill is what the two paths share
     o.supersampling = k == 0 ? 1 : 4;
     pipeline::OverlayRenderer overlay(camera, o);
     out[k] = frame.clone();
@@ -478,6 +484,162 @@ TEST(CoverageLayer, OverlayMatchesTheSupersampledReference) {
   ASSERT_GT(drawn, 3000);                   // the organ covers a good part of the image
   EXPECT_LT(sum_abs / (3.0 * drawn), 0.6);  // mean grey-level difference over the drawn pixels
   EXPECT_LT(large, 0.005 * drawn);          // large differences only at a few edge pixels
+}
+
+// Distance from p to the segment [a, b] (pixels).
+double SegmentDistance(const cv::Point2d& p, const cv::Point2d& a, const cv::Point2d& b) {
+  const cv::Point2d d = b - a;
+  const double t = std::clamp((p - a).dot(d) / d.dot(d), 0.0, 1.0);
+  return cv::norm(p - (a + t * d));
+}
+
+// The contour style on a box seen from a corner: silhouette pixels lie on the analytic
+// silhouette (the convex hull of the projected corners), cut-edge pixels on the three edges
+// that meet at the nearest corner (90 degree creases in view), none on the hidden edges or
+// inside the faces, and both lines are complete.
+TEST(Overlay, ContourLiesOnTheAnalyticSilhouetteAndCreases) {
+  PinholeCamera camera;
+  camera.width = 240;
+  camera.height = 200;
+  camera.fx = camera.fy = 260;
+  camera.cx = 119.5;
+  camera.cy = 99.5;
+  camera.LookAt(Eigen::Vector3d(70, -90, 160), Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 1, 0));
+  const Eigen::Vector3d size(50, 40, 30);
+  SurfaceMesh box = ExtractBoundary(MakeBoxTetMesh(size, {5, 4, 3}));
+  box.vertices.rowwise() -= 0.5 * size.transpose();
+  const RasterCamera raster = ToRasterCamera(camera);
+  std::vector<cv::Point2f> corners;
+  std::vector<double> depth;
+  std::vector<Eigen::Vector3d> world;
+  for (int k = 0; k < 8; ++k) {
+    const Eigen::Vector3d p(((k & 1) - 0.5) * size[0], (((k >> 1) & 1) - 0.5) * size[1],
+                            (((k >> 2) & 1) - 0.5) * size[2]);
+    const Eigen::Vector3d c = raster.camera_from_world * p;
+    world.push_back(p);
+    depth.push_back(c.z());
+    corners.emplace_back(raster.fx * c.x() / c.z() + raster.cx,
+                         raster.fy * c.y() / c.z() + raster.cy);
+  }
+  std::vector<cv::Point2f> hull;
+  cv::convexHull(corners, hull);
+  const int near = static_cast<int>(std::min_element(depth.begin(), depth.end()) - depth.begin());
+  std::vector<std::pair<cv::Point2d, cv::Point2d>> creases;  // the three edges at `near`
+  for (int bit = 0; bit < 3; ++bit) creases.push_back({corners[near], corners[near ^ (1 << bit)]});
+
+  pipeline::RenderStageOptions o;  // the default style is the contour
+  ASSERT_EQ(o.style, pipeline::OverlayStyle::kContour);
+  o.legend = false;
+  pipeline::OverlayRenderer overlay(camera, o);
+  cv::Mat image(camera.height, camera.width, CV_8UC3, cv::Scalar(40, 40, 40));
+  overlay.Render(box.vertices, box.faces, {}, pipeline::OverlayLayers(), &image);
+
+  // Pixels more than half-way to the line colours (BGR): contour (51, 255, 25), cut (255, 217, 25).
+  int contour_px = 0, cut_px = 0, other = 0;
+  std::vector<cv::Point2d> contour_at, cut_at;
+  for (int y = 0; y < image.rows; ++y)
+    for (int x = 0; x < image.cols; ++x) {
+      const cv::Vec3b p = image.at<cv::Vec3b>(y, x);
+      const cv::Point2d q(x, y);
+      const double to_hull = std::abs(cv::pointPolygonTest(hull, cv::Point2f(x, y), true));
+      double to_crease = 1e9;
+      for (const auto& e : creases)
+        to_crease = std::min(to_crease, SegmentDistance(q, e.first, e.second));
+      if (p[1] > 150 && p[0] < 120) {
+        ++contour_px;
+        contour_at.push_back(q);
+        EXPECT_LE(to_hull, 1.5) << "contour pixel " << x << "," << y;
+      } else if (p[0] > 150 && p[2] < 120) {
+        ++cut_px;
+        cut_at.push_back(q);
+        EXPECT_LE(std::min(to_hull, to_crease), 1.5) << "cut-edge pixel " << x << "," << y;
+      } else if (p != cv::Vec3b(40, 40, 40)) {
+        ++other;
+        EXPECT_LE(std::min(to_hull, to_crease), 2.5) << "drawn pixel " << x << "," << y;
+      }
+    }
+  ASSERT_GT(contour_px, 300);
+  ASSERT_GT(cut_px, 60);
+  // Complete: every point of the silhouette and of the creases (their ends apart, where the
+  // silhouette is drawn over them) has a pixel of its line within 1.5 px.
+  const auto covered = [](const std::vector<cv::Point2d>& px, const cv::Point2d& p) {
+    for (const cv::Point2d& q : px)
+      if (cv::norm(q - p) <= 1.5) return true;
+    return false;
+  };
+  for (size_t i = 0; i < hull.size(); ++i) {
+    const cv::Point2d a = hull[i], b = hull[(i + 1) % hull.size()];
+    const int n = static_cast<int>(cv::norm(b - a));
+    for (int k = 0; k <= n; ++k)
+      EXPECT_TRUE(covered(contour_at, a + (b - a) * (double(k) / std::max(n, 1))))
+          << "silhouette gap near " << a + (b - a) * (double(k) / std::max(n, 1));
+  }
+  for (const auto& e : creases) {
+    const double n = cv::norm(e.second - e.first);
+    for (double s = 4; s <= n - 4; s += 1)
+      EXPECT_TRUE(covered(cut_at, e.first + (e.second - e.first) * (s / n)))
+          << "crease gap near " << e.first + (e.second - e.first) * (s / n);
+  }
+}
+
+// The tint style leaves the outline undrawn: no pixel takes the contour colour.
+TEST(Overlay, TintStyleDrawsNoContour) {
+  PinholeCamera camera;
+  camera.width = 160;
+  camera.height = 120;
+  camera.fx = camera.fy = 200;
+  camera.cx = 79.5;
+  camera.cy = 59.5;
+  camera.LookAt(Eigen::Vector3d(0, 0, 150), Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 1, 0));
+  SurfaceMesh box = ExtractBoundary(MakeBoxTetMesh(Eigen::Vector3d(40, 30, 20), {2, 2, 1}));
+  box.vertices.rowwise() -= Eigen::RowVector3d(20, 15, 10);
+  pipeline::RenderStageOptions o;
+  o.style = pipeline::OverlayStyle::kTint;
+  pipeline::OverlayRenderer overlay(camera, o);
+  cv::Mat image(camera.height, camera.width, CV_8UC3, cv::Scalar(40, 40, 40));
+  overlay.Render(box.vertices, box.faces, {}, pipeline::OverlayLayers(), &image);
+  int tinted = 0, green = 0;
+  for (int y = 0; y < image.rows; ++y)
+    for (int x = 0; x < image.cols; ++x) {
+      const cv::Vec3b p = image.at<cv::Vec3b>(y, x);
+      tinted += p[2] > 60;  // the organ colour is mostly red
+      green += p[1] > 150 && p[0] < 120;
+    }
+  EXPECT_GT(tinted, 1000);
+  EXPECT_EQ(green, 0);
+}
+
+TEST(Overlay, RenderOptionsAreReadAndChecked) {
+  Scene scene;
+  scene.path = "scene.json";
+  EXPECT_EQ(pipeline::ReadPipelineOptions(scene).render.style, pipeline::OverlayStyle::kContour);
+  scene.render = {{"style", "tint"},
+                  {"contour_width_px", 3},
+                  {"legend", false},
+                  {"cut_edge_angle_deg", 45},
+                  {"contour_color", {1, 1, 0}}};
+  const pipeline::RenderStageOptions o = pipeline::ReadPipelineOptions(scene).render;
+  EXPECT_EQ(o.style, pipeline::OverlayStyle::kTint);
+  EXPECT_EQ(o.contour_width_px, 3);
+  EXPECT_FALSE(o.legend);
+  EXPECT_TRUE(o.frame_counter);
+  EXPECT_DOUBLE_EQ(o.cut_edge_angle_deg, 45);
+  EXPECT_EQ(o.contour_color, Eigen::Vector3d(1, 1, 0));
+  const auto error_of = [&](const nlohmann::json& render) {
+    scene.render = render;
+    try {
+      pipeline::ReadPipelineOptions(scene);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(error_of({{"style", "outline"}}).find("render.style"), std::string::npos);
+  EXPECT_NE(error_of({{"contour_width_px", 0}}).find("render.contour_width_px"), std::string::npos);
+  EXPECT_NE(error_of({{"cut_edge_angle_deg", 180}}).find("render.cut_edge_angle_deg"),
+            std::string::npos);
+  EXPECT_NE(error_of({{"cut_edge_color", {0, 2, 0}}}).find("render.cut_edge_color"),
+            std::string::npos);
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 #include "ar/pipeline/overlay.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
@@ -66,7 +67,8 @@ void OverlayRenderer::ShadeVertices(const RowMatX3d& vertices, const RowMatX3i& 
 void OverlayRenderer::RenderCoverage(const render::PixelRect& box,
                                      const RowMatX3d& organ_vertices_mm,
                                      const RowMatX3i& organ_faces,
-                                     const std::vector<OverlayStructure>& internal, cv::Mat* bgr) {
+                                     const std::vector<OverlayStructure>& internal,
+                                     double organ_opacity, cv::Mat* bgr) {
   internal_layer_.Clear(box);
   organ_layer_.Clear(box);
   for (const OverlayStructure& s : internal) {
@@ -76,10 +78,10 @@ void OverlayRenderer::RenderCoverage(const render::PixelRect& box,
     draw.opacity = static_cast<float>(std::min(1.0, s.opacity));
     internal_layer_.Draw(*s.vertices_mm, *s.faces, vertex_rgb_, draw);
   }
-  if (options_.organ_opacity > 0) {
+  if (organ_opacity > 0) {
     ShadeVertices(organ_vertices_mm, organ_faces, options_.organ_color.cast<float>());
     render::CoverageDrawOptions draw;
-    draw.opacity = static_cast<float>(std::min(1.0, options_.organ_opacity));
+    draw.opacity = static_cast<float>(std::min(1.0, organ_opacity));
     draw.cull_back_faces = true;  // the near side only: structures behind it show through
     organ_layer_.Draw(organ_vertices_mm, organ_faces, vertex_rgb_, draw);
   }
@@ -133,7 +135,7 @@ void OverlayRenderer::RenderSupersampled(const render::PixelRect& box,
                                          const RowMatX3d& organ_vertices_mm,
                                          const RowMatX3i& organ_faces,
                                          const std::vector<OverlayStructure>& internal,
-                                         cv::Mat* bgr) const {
+                                         double organ_opacity, cv::Mat* bgr) const {
   render::RasterCamera crop = raster_;
   crop.width = box.width();
   crop.height = box.height();
@@ -173,14 +175,213 @@ void OverlayRenderer::RenderSupersampled(const render::PixelRect& box,
     draw.id = 2;
     draw_gouraud(*s.vertices_mm, *s.faces, s.color.cast<float>(), draw);
   }
-  if (options_.organ_opacity > 0) {
+  if (organ_opacity > 0) {
     render::DrawOptions draw;
-    draw.opacity = static_cast<float>(std::min(1.0, options_.organ_opacity));
+    draw.opacity = static_cast<float>(std::min(1.0, organ_opacity));
     draw.cull_back_faces = true;  // the near side only: structures behind it show through
     draw.id = 1;
     draw_gouraud(organ_vertices_mm, organ_faces, options_.organ_color.cast<float>(), draw);
   }
   target.ResolveBgr().copyTo((*bgr)(roi));
+}
+
+namespace {
+
+cv::Scalar Bgr(const Eigen::Vector3d& rgb) {
+  return cv::Scalar(255 * rgb[2], 255 * rgb[1], 255 * rgb[0]);
+}
+
+}  // namespace
+
+void OverlayRenderer::UpdateEdges(const RowMatX3i& faces) {
+  if (faces.rows() == edge_faces_.rows() && faces == edge_faces_) return;
+  edge_faces_ = faces;
+  edge_quads_.clear();
+  // Each directed edge a -> b with the third vertex of its face; an edge shared by exactly two
+  // faces appears once in each direction (consistently oriented surface).
+  std::vector<std::array<int, 4>> half;  // min, max, third vertex, 1 when a < b
+  half.reserve(3 * faces.rows());
+  for (int f = 0; f < faces.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int a = faces(f, k), b = faces(f, (k + 1) % 3), c = faces(f, (k + 2) % 3);
+      half.push_back({std::min(a, b), std::max(a, b), c, a < b ? 1 : 0});
+    }
+  std::sort(half.begin(), half.end());
+  for (size_t i = 0; i < half.size();) {
+    size_t j = i;
+    while (j < half.size() && half[j][0] == half[i][0] && half[j][1] == half[i][1]) ++j;
+    if (j - i == 2 && half[i][3] != half[i + 1][3]) {       // manifold, consistently oriented
+      const auto& up = half[i][3] ? half[i] : half[i + 1];  // face with min -> max
+      const auto& down = half[i][3] ? half[i + 1] : half[i];
+      edge_quads_.emplace_back(up[0], up[1], up[2], down[2]);
+    }
+    i = j;
+  }
+}
+
+void OverlayRenderer::DrawContour(const render::PixelRect& box, const RowMatX3d& organ_vertices_mm,
+                                  const RowMatX3i& organ_faces, cv::Mat* bgr) {
+  // Coverage of the organ's near side at opacity 1: its alpha >= 0.5 is the organ's mask and
+  // its depth tells which cut edges are in view.
+  organ_layer_.Clear(box);
+  vertex_rgb_.setZero(organ_vertices_mm.rows(), 3);
+  render::CoverageDrawOptions draw;
+  draw.cull_back_faces = true;
+  organ_layer_.Draw(organ_vertices_mm, organ_faces, vertex_rgb_, draw);
+  // OpenCV's anti-aliased line of thickness t darkens about t + 1 pixels across.
+  const int width = std::max(1, options_.contour_width_px - 1);
+
+  // Cut edges: faces meeting at more than cut_edge_angle_deg (the rule is in
+  // RenderStageOptions), drawn where in view, before the silhouette so that it stays on top.
+  UpdateEdges(organ_faces);
+  const double cos_limit = std::cos(options_.cut_edge_angle_deg * M_PI / 180.0);
+  const Eigen::Vector3d eye = camera_.CenterInWorld();
+  const cv::Scalar cut_colour = Bgr(options_.cut_edge_color);
+  const auto depth_at = [&](int x, int y) {  // largest camera depth of the surface near (x, y)
+    double deepest = -1;
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int u = x + dx, v = y + dy;
+        if (u < box.x0 || v < box.y0 || u >= box.x1 || v >= box.y1) continue;
+        const render::CoverageLayer::Pixel& p = organ_layer_.pixel(u, v);
+        if (p.alpha > 0 && p.inv_depth > 0) deepest = std::max(deepest, 1.0 / p.inv_depth);
+      }
+    return deepest;
+  };
+  // Drawn on a copy of the box and blended back by the organ's coverage, so that a cut edge
+  // never shows outside the organ (where the silhouette is drawn).
+  const cv::Rect roi(box.x0, box.y0, box.width(), box.height());
+  cv::Mat lines = (*bgr)(roi).clone();
+  const cv::Point2f origin(static_cast<float>(box.x0), static_cast<float>(box.y0));
+  bool any_cut_edge = false;
+  for (const Eigen::Vector4i& q : edge_quads_) {
+    const Eigen::Vector3d a = organ_vertices_mm.row(q[0]).transpose();
+    const Eigen::Vector3d b = organ_vertices_mm.row(q[1]).transpose();
+    const Eigen::Vector3d n0 = (b - a).cross(organ_vertices_mm.row(q[2]).transpose() - a);
+    const Eigen::Vector3d n1 = (organ_vertices_mm.row(q[3]).transpose() - a).cross(b - a);
+    if (n0.norm() == 0 || n1.norm() == 0) continue;
+    if (n0.dot(n1) > cos_limit * n0.norm() * n1.norm()) continue;  // smooth there
+    if (n0.dot(a - eye) >= 0 && n1.dot(a - eye) >= 0) continue;    // both faces turned away
+    // In pieces of about a pixel, each drawn where no surface lies in front of it (a tolerance
+    // of 1 % of its depth covers the sampling of the depth at pixel centres).
+    bool fa, fb;
+    const cv::Point2f pa = ProjectPinhole(raster_, a, &fa), pb = ProjectPinhole(raster_, b, &fb);
+    if (!(fa && fb)) continue;
+    const int pieces = std::max(1, static_cast<int>(std::ceil(cv::norm(pb - pa))));
+    for (int i = 0; i < pieces; ++i) {
+      const double t = (i + 0.5) / pieces;
+      const Eigen::Vector3d m = a + t * (b - a);
+      const double z = (raster_.camera_from_world * m).z();
+      bool fm;
+      const cv::Point2f pm = ProjectPinhole(raster_, m, &fm);
+      const double deepest =
+          depth_at(static_cast<int>(std::lround(pm.x)), static_cast<int>(std::lround(pm.y)));
+      if (deepest < 0 || z > deepest + 0.01 * z) continue;
+      const cv::Point2f p0 = pa + (pb - pa) * static_cast<float>(double(i) / pieces);
+      const cv::Point2f p1 = pa + (pb - pa) * static_cast<float>(double(i + 1) / pieces);
+      cv::line(lines, p0 - origin, p1 - origin, cut_colour, width, cv::LINE_AA);
+      any_cut_edge = true;
+    }
+  }
+  if (any_cut_edge)
+    for (int y = box.y0; y < box.y1; ++y) {
+      cv::Vec3b* out = bgr->ptr<cv::Vec3b>(y);
+      const cv::Vec3b* in = lines.ptr<cv::Vec3b>(y - box.y0);
+      for (int x = box.x0; x < box.x1; ++x) {
+        const float a = organ_layer_.alpha(x, y);
+        for (int c = 0; c < 3; ++c)
+          out[x][c] = static_cast<uchar>(out[x][c] + a * (in[x - box.x0][c] - out[x][c]) + 0.5f);
+      }
+    }
+
+  // Silhouette: the boundary of the mask (outer outlines and holes). Each boundary pixel's
+  // centre moves down the coverage gradient to where the coverage, linear at that slope, is
+  // 0.5 (the edge to sub-pixel accuracy); then three points are averaged so that the
+  // staircase does not show.
+  cv::Mat mask(box.height(), box.width(), CV_8U, cv::Scalar(0));
+  for (int y = box.y0; y < box.y1; ++y) {
+    const render::CoverageLayer::Pixel* row = organ_layer_.row(y);
+    uchar* m = mask.ptr<uchar>(y - box.y0);
+    for (int x = organ_layer_.row_begin(y); x < organ_layer_.row_end(y); ++x)
+      if (x >= box.x0 && x < box.x1 && row[x].alpha >= 0.5f) m[x - box.x0] = 255;
+  }
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask, contours, cv::RETR_LIST, cv::CHAIN_APPROX_NONE, cv::Point(box.x0, box.y0));
+  // Drawn at 1/16 px (cv::LINE_AA with 4 fractional bits).
+  constexpr int kShift = 4;
+  const auto alpha = [&](int x, int y) {
+    return x < box.x0 || y < box.y0 || x >= box.x1 || y >= box.y1 ? 0.0f : organ_layer_.alpha(x, y);
+  };
+  std::vector<std::vector<cv::Point>> smooth(contours.size());
+  std::vector<cv::Point2f> edge;
+  for (size_t c = 0; c < contours.size(); ++c) {
+    const std::vector<cv::Point>& in = contours[c];
+    const int n = static_cast<int>(in.size());
+    edge.resize(n);
+    for (int i = 0; i < n; ++i) {
+      const int x = in[i].x, y = in[i].y;
+      const float gx = 0.5f * (alpha(x + 1, y) - alpha(x - 1, y));
+      const float gy = 0.5f * (alpha(x, y + 1) - alpha(x, y - 1));
+      const float g = std::hypot(gx, gy);
+      const float t = g > 1e-3f ? std::clamp((alpha(x, y) - 0.5f) / g, 0.0f, 1.0f) : 0.0f;
+      edge[i] = cv::Point2f(x - t * gx / std::max(g, 1e-3f), y - t * gy / std::max(g, 1e-3f));
+    }
+    smooth[c].resize(n);
+    for (int i = 0; i < n; ++i) {
+      const cv::Point2f s = 0.25f * (edge[(i + n - 1) % n] + 2 * edge[i] + edge[(i + 1) % n]);
+      smooth[c][i] = cv::Point(static_cast<int>(std::lround(s.x * (1 << kShift))),
+                               static_cast<int>(std::lround(s.y * (1 << kShift))));
+    }
+  }
+  cv::polylines(*bgr, smooth, true, Bgr(options_.contour_color), width, cv::LINE_AA, kShift);
+}
+
+void OverlayRenderer::DrawLegend(const std::vector<OverlayStructure>& internal, int frame,
+                                 cv::Mat* bgr) const {
+  // Text scaled with the image height (readable at 480 to 1080 rows).
+  const double scale = std::clamp(bgr->rows / 900.0, 0.35, 0.8);
+  const int thick = 1, line_h = static_cast<int>(std::lround(34 * scale)) + 4;
+  const int pad = static_cast<int>(std::lround(12 * scale)) + 2;
+  const cv::Scalar white(255, 255, 255);
+  const auto text_width = [&](const std::string& t) {
+    int base = 0;
+    return cv::getTextSize(t, cv::FONT_HERSHEY_SIMPLEX, scale, thick, &base).width;
+  };
+  if (options_.legend) {
+    std::vector<std::pair<std::string, cv::Scalar>> rows;
+    if (options_.style == OverlayStyle::kContour) {
+      rows.push_back({"organ outline", Bgr(options_.contour_color)});
+      rows.push_back({"cut edges", Bgr(options_.cut_edge_color)});
+    } else {
+      rows.push_back({"organ", Bgr(options_.organ_color)});
+    }
+    for (const OverlayStructure& s : internal)
+      if (!s.name.empty() && Visible(s)) rows.push_back({s.name, Bgr(s.color)});
+    int w = 0;
+    for (const auto& r : rows) w = std::max(w, text_width(r.first));
+    const int swatch = 2 * line_h / 3;
+    const cv::Rect panel(pad, pad, w + swatch + 3 * pad,
+                         static_cast<int>(rows.size()) * line_h + pad);
+    const cv::Rect clipped = panel & cv::Rect(0, 0, bgr->cols, bgr->rows);
+    if (clipped.area() > 0) {
+      cv::Mat roi = (*bgr)(clipped);
+      roi.convertTo(roi, -1, 0.4, 0);  // darkened, so that the text reads on any frame
+    }
+    for (size_t i = 0; i < rows.size(); ++i) {
+      const int y = pad + static_cast<int>(i) * line_h + line_h / 2 + pad / 2;
+      cv::line(*bgr, cv::Point(2 * pad, y), cv::Point(2 * pad + swatch, y), rows[i].second,
+               options_.contour_width_px + 2, cv::LINE_AA);
+      cv::putText(*bgr, rows[i].first, cv::Point(3 * pad + swatch, y + line_h / 4),
+                  cv::FONT_HERSHEY_SIMPLEX, scale, white, thick, cv::LINE_AA);
+    }
+  }
+  if (options_.frame_counter && frame >= 0) {
+    const std::string t = "frame " + std::to_string(frame);
+    const cv::Point at(pad, bgr->rows - pad);
+    cv::putText(*bgr, t, at, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(0, 0, 0), thick + 2,
+                cv::LINE_AA);
+    cv::putText(*bgr, t, at, cv::FONT_HERSHEY_SIMPLEX, scale, white, thick, cv::LINE_AA);
+  }
 }
 
 void OverlayRenderer::Render(const RowMatX3d& organ_vertices_mm, const RowMatX3i& organ_faces,
@@ -209,10 +410,14 @@ void OverlayRenderer::Render(const RowMatX3d& organ_vertices_mm, const RowMatX3i
     box.y1 = std::min(raster_.height, clamp_px(std::ceil(hi_v), raster_.height) + 3);
   }
   if (!box.empty()) {
+    // The contour style draws no organ surface: the video shows inside the outline.
+    const bool contour = options_.style == OverlayStyle::kContour;
+    const double organ_opacity = contour ? 0.0 : options_.organ_opacity;
     if (options_.supersampling <= 1)
-      RenderCoverage(box, organ_vertices_mm, organ_faces, internal, bgr);
+      RenderCoverage(box, organ_vertices_mm, organ_faces, internal, organ_opacity, bgr);
     else
-      RenderSupersampled(box, organ_vertices_mm, organ_faces, internal, bgr);
+      RenderSupersampled(box, organ_vertices_mm, organ_faces, internal, organ_opacity, bgr);
+    if (contour) DrawContour(box, organ_vertices_mm, organ_faces, bgr);
   }
 
   if (options_.wireframe) {
@@ -249,6 +454,7 @@ void OverlayRenderer::Render(const RowMatX3d& organ_vertices_mm, const RowMatX3i
       cv::circle(*bgr, p, 2, cv::Scalar(0, 220, 0), cv::FILLED, cv::LINE_AA);
     }
   }
+  DrawLegend(internal, layers.frame, bgr);
 }
 
 }  // namespace arreg::pipeline

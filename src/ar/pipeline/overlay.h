@@ -1,9 +1,11 @@
-// The overlay render stage: the deformed organ (translucent, shaded) and the internal
-// structures seen through it, z-buffered and anti-aliased, composited over the video frame.
+// The overlay render stage: the deformed organ (its silhouette and cut edges as lines, or a
+// translucent shaded surface) and the internal structures, z-buffered and anti-aliased,
+// composited over the video frame, with an optional legend and frame counter.
 #pragma once
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 #include "ar/pipeline/pipeline_options.h"
@@ -23,6 +25,7 @@ struct OverlayStructure {
   const RowMatX3i* faces = nullptr;                  // (#F x 3)
   Eigen::Vector3d color = Eigen::Vector3d(1, 1, 0);  // linear RGB in [0, 1]
   double opacity = 1.0;
+  std::string name;  // shown in the legend; "" leaves it out
 };
 
 // Optional annotation layers (pixels, world points).
@@ -31,6 +34,7 @@ struct OverlayLayers {
   const RowMatX3d* targets_mm = nullptr;      // (#F x 3)
   const RowMatX3d* anchors_mm = nullptr;      // (#F x 3)
   const std::vector<char>* alive = nullptr;   // (#F) rows drawn
+  int frame = -1;                             // shown by the frame counter; -1: none
 };
 
 class OverlayRenderer {
@@ -51,10 +55,18 @@ class OverlayRenderer {
   using RowMatX3f = Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>;
   void RenderCoverage(const render::PixelRect& box, const RowMatX3d& organ_vertices_mm,
                       const RowMatX3i& organ_faces, const std::vector<OverlayStructure>& internal,
-                      cv::Mat* bgr);
+                      double organ_opacity, cv::Mat* bgr);
   void RenderSupersampled(const render::PixelRect& box, const RowMatX3d& organ_vertices_mm,
                           const RowMatX3i& organ_faces,
-                          const std::vector<OverlayStructure>& internal, cv::Mat* bgr) const;
+                          const std::vector<OverlayStructure>& internal, double organ_opacity,
+                          cv::Mat* bgr) const;
+  // Contour style: the organ's silhouette (the boundary of its coverage mask, drawn into
+  // organ_layer_) and its visible cut edges (options_.cut_edge_angle_deg) as lines.
+  void DrawContour(const render::PixelRect& box, const RowMatX3d& organ_vertices_mm,
+                   const RowMatX3i& organ_faces, cv::Mat* bgr);
+  // The surface's edges shared by two faces (edge_quads_), recomputed only when the faces change.
+  void UpdateEdges(const RowMatX3i& faces);
+  void DrawLegend(const std::vector<OverlayStructure>& internal, int frame, cv::Mat* bgr) const;
   // Blinn-Phong at the vertices (Gouraud) into vertex_rgb_.
   void ShadeVertices(const RowMatX3d& vertices, const RowMatX3i& faces,
                      const Eigen::Vector3f& albedo);
@@ -66,6 +78,10 @@ class OverlayRenderer {
   render::CoverageLayer internal_layer_, organ_layer_;
   RowMatX3d normals_;
   RowMatX3f vertex_rgb_;
+  RowMatX3i edge_faces_;  // the faces edge_quads_ was computed for
+  // Per edge shared by two faces: its vertices a, b, and the third vertex of the face with the
+  // edge a -> b, then of the face with b -> a.
+  std::vector<Eigen::Vector4i> edge_quads_;
 };
 
 }  // namespace arreg::pipeline

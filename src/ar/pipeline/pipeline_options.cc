@@ -64,6 +64,15 @@ void RenderStageOptions::Check() const {
                     "must be in [0, 1], got ", organ_opacity);
   ARREG_CHECK_INPUT(organ_color.minCoeff() >= 0 && organ_color.maxCoeff() <= 1, "",
                     "render.organ_color", "components must be in [0, 1]");
+  ARREG_CHECK_INPUT(contour_color.minCoeff() >= 0 && contour_color.maxCoeff() <= 1, "",
+                    "render.contour_color", "components must be in [0, 1]");
+  ARREG_CHECK_INPUT(cut_edge_color.minCoeff() >= 0 && cut_edge_color.maxCoeff() <= 1, "",
+                    "render.cut_edge_color", "components must be in [0, 1]");
+  ARREG_CHECK_INPUT(contour_width_px >= 1 && contour_width_px <= 8, "", "render.contour_width_px",
+                    "must be in [1, 8], got ", contour_width_px);
+  ARREG_CHECK_INPUT(
+      std::isfinite(cut_edge_angle_deg) && cut_edge_angle_deg > 0 && cut_edge_angle_deg < 180, "",
+      "render.cut_edge_angle_deg", "must be in (0, 180), got ", cut_edge_angle_deg);
 }
 
 void OutputStageOptions::Check() const {
@@ -263,6 +272,15 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
 
 void ReadRender(const Scene& scene, RenderStageOptions* o) {
   JsonObjectReader r(scene.render, scene.path, "render");
+  std::string style = o->style == OverlayStyle::kTint ? "tint" : "contour";
+  r.OptionalChoice("style", {"contour", "tint"}, &style);
+  o->style = style == "tint" ? OverlayStyle::kTint : OverlayStyle::kContour;
+  r.Optional("contour_color", &o->contour_color);
+  r.Optional("cut_edge_color", &o->cut_edge_color);
+  r.Optional("contour_width_px", &o->contour_width_px);
+  r.Optional("cut_edge_angle_deg", &o->cut_edge_angle_deg);
+  r.Optional("legend", &o->legend);
+  r.Optional("frame_counter", &o->frame_counter);
   r.Optional("supersampling", &o->supersampling);
   r.Optional("organ_opacity", &o->organ_opacity);
   r.Optional("organ_color", &o->organ_color);
@@ -409,6 +427,13 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"cut_configuration", o.cutting.cut_configuration},
       {"internal_caps", o.cutting.internal_caps}};
   j["render"] = {{"enabled", o.render.enabled},
+                 {"style", o.render.style == OverlayStyle::kTint ? "tint" : "contour"},
+                 {"contour_color", vec(o.render.contour_color)},
+                 {"cut_edge_color", vec(o.render.cut_edge_color)},
+                 {"contour_width_px", o.render.contour_width_px},
+                 {"cut_edge_angle_deg", o.render.cut_edge_angle_deg},
+                 {"legend", o.render.legend},
+                 {"frame_counter", o.render.frame_counter},
                  {"supersampling", o.render.supersampling},
                  {"organ_opacity", o.render.organ_opacity},
                  {"organ_color", vec(o.render.organ_color)},

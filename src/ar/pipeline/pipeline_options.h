@@ -158,9 +158,30 @@ struct CuttingStageOptions {
   void Check() const;
 };
 
+// How the registered organ is drawn (docs/pipeline.md, "Overlay").
+enum class OverlayStyle {
+  kContour,  // its outline and cut edges as lines, the video inside left as it is
+  kTint,     // a translucent shaded surface (organ_opacity, organ_color)
+};
+
 // Overlay rendering (z-buffered, anti-aliased) drawn over the decoded frame.
 struct RenderStageOptions {
   bool enabled = true;  // render the overlay at all (bench without); default true
+  // "contour" (default): the organ's silhouette and cut edges as anti-aliased lines over the
+  // unaltered video, internal structures in their own colour; "tint": the organ as a
+  // translucent surface of organ_color at organ_opacity.
+  OverlayStyle style = OverlayStyle::kContour;
+  // Silhouette line colour, linear RGB in [0, 1]; default bright green (contrasts with tissue).
+  Eigen::Vector3d contour_color = Eigen::Vector3d(0.1, 1.0, 0.2);
+  // Cut-edge line colour, linear RGB in [0, 1]; default cyan.
+  Eigen::Vector3d cut_edge_color = Eigen::Vector3d(0.1, 0.85, 1.0);
+  int contour_width_px = 2;  // line width of silhouette and cut edges (px), in [1, 8]; default 2
+  // A surface edge whose two faces meet at more than this dihedral angle (degrees) is drawn as
+  // a cut edge: a cut's wall meets the organ's surface at its rim at about 90 degrees, while
+  // the organ's own surface is smooth at the mesh's resolution. In (0, 180); default 60.
+  double cut_edge_angle_deg = 60;
+  bool legend = true;         // colour legend in the top-left corner; default true
+  bool frame_counter = true;  // "frame N" in the bottom-left corner; default true
   // Anti-aliasing: 1 (default) one sample per pixel with analytic coverage of silhouette edges
   // (render::CoverageLayer, fast); 2..8 the reference rasterizer at that many samples per
   // pixel and axis.

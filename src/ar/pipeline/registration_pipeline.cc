@@ -629,14 +629,17 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       bgr.copyTo(overlay_image);
       std::vector<OverlayStructure> layers_internal;
       for (size_t k = 0; k < internal.size(); ++k)
-        layers_internal.push_back({&internal[k].vertices, &internal[k].faces,
-                                   impl_->model.internal_colors[k],
-                                   impl_->model.internal_opacity[k]});
+        layers_internal.push_back(
+            {&internal[k].vertices, &internal[k].faces, impl_->model.internal_colors[k],
+             impl_->model.internal_opacity[k],
+             k < impl_->model.internal_names.size() ? impl_->model.internal_names[k]
+                                                    : std::string()});
       OverlayLayers layers;
       layers.feature_pixels = &pixels;
       layers.targets_mm = &targets;
       layers.anchors_mm = &anchors;
       layers.alive = &alive_rows;
+      layers.frame = frame;
       overlay.Render(surface.vertices, surface.faces, layers_internal, layers, &overlay_image);
       ms.render = since(t0);
     } else {
