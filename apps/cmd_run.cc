@@ -91,7 +91,8 @@ int RunRun(int argc, char** argv) {
   parser.AddFlag("show-features", &show_features, "draw the tracked features");
   parser.AddFlag("show-targets", &show_targets, "draw the lifted targets");
   parser.AddFlag("show-springs", &show_springs, "draw the springs (anchor to target)");
-  parser.AddDouble("opacity", &opacity, "A", "organ opacity in [0, 1]");
+  parser.AddDouble("opacity", &opacity, "A",
+                   "organ opacity in [0, 1] of the tint style (--set render.style=tint)");
   parser.AddInt("supersampling", &supersampling, "S",
                 "1: one sample per pixel with analytic edge anti-aliasing; 2..8: "
                 "supersampled reference renderer");

@@ -498,6 +498,8 @@ TEST(Overlay, DrawsOnlyOverTheOrganAndBlendsByOpacity) {
       render::RenderMask(ToRasterCamera(camera), surface.vertices, surface.faces);
   for (double opacity : {0.0, 0.35, 1.0}) {
     RenderStageOptions o;
+    o.style = OverlayStyle::kTint;  // the translucent surface (the contour style draws none)
+    o.legend = false;
     o.organ_opacity = opacity;
     OverlayRenderer overlay(camera, o);
     cv::Mat out = frame.clone();
