@@ -30,6 +30,19 @@ RasterCamera TestCamera(int width = 64, int height = 48) {
   return c;
 }
 
+// A camera of width x height pixels and focal length f (px), principal point at the image
+// centre, at `eye` looking at the origin with +y up.
+PinholeCamera CameraAt(int width, int height, double f, const Eigen::Vector3d& eye) {
+  PinholeCamera camera;
+  camera.width = width;
+  camera.height = height;
+  camera.fx = camera.fy = f;
+  camera.cx = 0.5 * (width - 1);
+  camera.cy = 0.5 * (height - 1);
+  camera.LookAt(eye, Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 1, 0));
+  return camera;
+}
+
 // Axis-aligned square of half-size `a` at depth `z`, facing the camera.
 void Square(double a, double z, double x0, RowMatX3d* v, RowMatX3i* f) {
   v->resize(4, 3);
@@ -437,13 +450,7 @@ TEST(CoverageLayer, CullsBackFacesAndClipsAtTheNearPlane) {
 // rasterizer at 4 x 4 supersampling: a translucent organ over a textured frame with an
 // internal structure inside it.
 TEST(CoverageLayer, OverlayMatchesTheSupersampledReference) {
-  PinholeCamera camera;
-  camera.width = 200;
-  camera.height = 160;
-  camera.fx = camera.fy = 220;
-  camera.cx = 99.5;
-  camera.cy = 79.5;
-  camera.LookAt(Eigen::Vector3d(30, -40, 160), Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 1, 0));
+  const PinholeCamera camera = CameraAt(200, 160, 220, Eigen::Vector3d(30, -40, 160));
   SurfaceMesh organ = ExtractBoundary(MakeBoxTetMesh(Eigen::Vector3d(50, 40, 20), {5, 4, 2}));
   organ.vertices.rowwise() -= Eigen::RowVector3d(25, 20, 10);
   for (int i = 0; i < organ.vertices.rows(); ++i) {  // bulge it so that it is not flat-shaded
@@ -498,13 +505,7 @@ double SegmentDistance(const cv::Point2d& p, const cv::Point2d& a, const cv::Poi
 // that meet at the nearest corner (90 degree creases in view), none on the hidden edges or
 // inside the faces, and both lines are complete.
 TEST(Overlay, ContourLiesOnTheAnalyticSilhouetteAndCreases) {
-  PinholeCamera camera;
-  camera.width = 240;
-  camera.height = 200;
-  camera.fx = camera.fy = 260;
-  camera.cx = 119.5;
-  camera.cy = 99.5;
-  camera.LookAt(Eigen::Vector3d(70, -90, 160), Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 1, 0));
+  const PinholeCamera camera = CameraAt(240, 200, 260, Eigen::Vector3d(70, -90, 160));
   const Eigen::Vector3d size(50, 40, 30);
   SurfaceMesh box = ExtractBoundary(MakeBoxTetMesh(size, {5, 4, 3}));
   box.vertices.rowwise() -= 0.5 * size.transpose();
@@ -584,13 +585,7 @@ TEST(Overlay, ContourLiesOnTheAnalyticSilhouetteAndCreases) {
 
 // The tint style leaves the outline undrawn: no pixel takes the contour colour.
 TEST(Overlay, TintStyleDrawsNoContour) {
-  PinholeCamera camera;
-  camera.width = 160;
-  camera.height = 120;
-  camera.fx = camera.fy = 200;
-  camera.cx = 79.5;
-  camera.cy = 59.5;
-  camera.LookAt(Eigen::Vector3d(0, 0, 150), Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 1, 0));
+  const PinholeCamera camera = CameraAt(160, 120, 200, Eigen::Vector3d(0, 0, 150));
   SurfaceMesh box = ExtractBoundary(MakeBoxTetMesh(Eigen::Vector3d(40, 30, 20), {2, 2, 1}));
   box.vertices.rowwise() -= Eigen::RowVector3d(20, 15, 10);
   pipeline::RenderStageOptions o;
