@@ -98,7 +98,9 @@ void ExpectFewerDofs(const std::vector<Result>& results, double reference, doubl
   std::printf("free DOFs to reach %g %%: P1 %d, P2 %d, P3 %d\n", 100 * tolerance, p1, p2, p3);
   ASSERT_GT(p2, 0);
   ASSERT_GT(p3, 0);
-  if (p1_reaches) ASSERT_GT(p1, 0);
+  if (p1_reaches) {
+    ASSERT_GT(p1, 0);
+  }
   if (p1 > 0) {
     EXPECT_LT(p2 * 3, p1);
     EXPECT_LT(p3 * 3, p1);
@@ -107,10 +109,12 @@ void ExpectFewerDofs(const std::vector<Result>& results, double reference, doubl
 
 // Each family converges: the error falls with every refinement.
 void ExpectConverging(const std::vector<Result>& results, double reference) {
-  for (size_t i = 1; i < results.size(); ++i)
-    if (results[i].degree == results[i - 1].degree)
+  for (size_t i = 1; i < results.size(); ++i) {
+    if (results[i].degree == results[i - 1].degree) {
       EXPECT_LT(std::abs(results[i].tip - reference), std::abs(results[i - 1].tip - reference))
           << "P" << results[i].degree << " n = " << results[i].cells;
+    }
+  }
 }
 
 // Cantilever 40 x 4 x 4 mm, clamped at x = 0, shear traction on x = 40 (total P),
