@@ -50,11 +50,13 @@ Vessel MakeVessel(const RowMatX3d& centreline, const Material& material,
   for (int p = 1; p < num_points; ++p) {
     const double chord = (centreline.row(p) - centreline.row(p - 1)).norm();
     if (!(chord > 0) || !std::isfinite(chord))
-      throw Error("", "centreline", "zero-length or non-finite chord at point " + std::to_string(p));
+      throw Error("", "centreline",
+                  "zero-length or non-finite chord at point " + std::to_string(p));
     arc[p] = arc[p - 1] + chord;
   }
   const double length = arc.back();
-  const int num_elements = std::max(1, static_cast<int>(std::ceil(length / options.frame_spacing_mm - 1e-9)));
+  const int num_elements =
+      std::max(1, static_cast<int>(std::ceil(length / options.frame_spacing_mm - 1e-9)));
   const int num_frames = num_elements + 1;
 
   // Frame positions at equal arc-length steps on the polyline.
@@ -77,7 +79,7 @@ Vessel MakeVessel(const RowMatX3d& centreline, const Material& material,
   std::vector<Eigen::Matrix3d> rotation(num_frames);
   Eigen::Vector3d previous_t = chord[0], u_axis = Perpendicular(chord[0]);
   for (int i = 0; i < num_frames; ++i) {
-    Eigen::Vector3d t = i == 0 ? chord[0]
+    Eigen::Vector3d t = i == 0              ? chord[0]
                         : i == num_elements ? chord[num_elements - 1]
                                             : (chord[i - 1] + chord[i]);
     if (!(t.norm() > 1e-9)) throw Error("", "centreline", "the polyline turns back on itself");
@@ -98,8 +100,9 @@ Vessel MakeVessel(const RowMatX3d& centreline, const Material& material,
 
   // Cross-section quadrature: Gauss-Legendre in r on [0, R] (weight r dr),
   // equal angles.
-  static const double kNodes[3][3] = {
-      {0, 0, 0}, {-0.5773502691896258, 0.5773502691896258, 0}, {-0.7745966692414834, 0, 0.7745966692414834}};
+  static const double kNodes[3][3] = {{0, 0, 0},
+                                      {-0.5773502691896258, 0.5773502691896258, 0},
+                                      {-0.7745966692414834, 0, 0.7745966692414834}};
   static const double kWeights[3][3] = {{2, 0, 0}, {1, 1, 0}, {5.0 / 9, 8.0 / 9, 5.0 / 9}};
   const int nr = options.radial_points, na = options.angular_points;
   const double radius = options.radius_mm;
@@ -139,7 +142,6 @@ VesselCutResult CutVessel(const VesselCutPlane& plane, GeneralisedState* state, 
   };
   auto side = [&](int frame) { return distance(frame) > 0; };
   VesselCutResult result;
-  std::vector<char> removed(vessel->elements.size(), 0);
   const int num_elements = static_cast<int>(vessel->elements.size());
   for (int e = 0; e < num_elements; ++e) {
     const int a = vessel->elements[e][0], b = vessel->elements[e][1];
@@ -151,75 +153,45 @@ VesselCutResult CutVessel(const VesselCutPlane& plane, GeneralisedState* state, 
             (state->position(vessel->frame_nodes[b]) - state->position(vessel->frame_nodes[a]));
     if ((crossing - plane.point).norm() > plane.radius_mm) continue;
     result.crossed_elements.push_back(e);
-    // Candidates nearest the plane first; frame j qualifies when it keeps an
-    // element on its own side (otherwise it is a free end and a copy would
-    // separate nothing).
-    int candidates[2] = {a, b};
-    if (std::abs(db) < std::abs(da)) std::swap(candidates[0], candidates[1]);
-    bool separated = false;
-    for (int j : candidates) {
-      std::vector<int> same_side, other_side;
-      for (int f = 0; f < static_cast<int>(vessel->elements.size()); ++f) {
-        if (removed[f]) continue;
-        const Eigen::Vector2i& el = vessel->elements[f];
-        if (el[0] != j && el[1] != j) continue;
-        const int other = el[0] == j ? el[1] : el[0];
-        (side(other) == side(j) ? same_side : other_side).push_back(f);
-      }
-      if (same_side.empty() || other_side.empty()) continue;
-      const int node = vessel->frame_nodes[j];
-      // Copies: AddFrameNode grows the arrays these would refer into.
-      const Eigen::Vector3d rest_position = state->rest_positions().row(node).transpose();
-      const Eigen::Matrix3d rest_rotation = state->rest_rotation(node);
-      const int copy_node = state->AddFrameNode(rest_position, rest_rotation);
-      state->mutable_positions().row(copy_node) = state->positions().row(node);
-      state->mutable_velocities().row(copy_node) = state->velocities().row(node);
-      state->mutable_angular_velocities().row(copy_node) = state->angular_velocities().row(node);
-      state->mutable_rotation(copy_node) = state->rotation(node);
-      state->SetFixedTranslation(copy_node, state->fixed_translation(node));
-      state->SetFixedRotation(copy_node, state->fixed_rotation(node));
-      const int copy = static_cast<int>(vessel->frame_nodes.size());
-      vessel->frame_nodes.push_back(copy_node);
-      for (int f : other_side)
-        for (int c = 0; c < 2; ++c)
-          if (vessel->elements[f][c] == j) vessel->elements[f][c] = copy;
-      for (size_t s = 0; s < vessel->samples.size(); ++s) {
-        if (std::find(other_side.begin(), other_side.end(), vessel->sample_element[s]) ==
-            other_side.end())
-          continue;
-        for (int& frame : vessel->samples[s].frames)
-          if (frame == j) frame = copy;
-      }
-      result.duplicated.emplace_back(node, copy_node);
-      separated = true;
-      break;
+    // The frame nearer the plane is duplicated when it keeps an element on
+    // its own side; otherwise it is a free end, the vessel is already open
+    // within half an element of the plane (e.g. a repeated cut) and nothing
+    // changes.
+    const int j = std::abs(db) < std::abs(da) ? b : a;
+    std::vector<int> same_side, other_side;
+    for (int f = 0; f < static_cast<int>(vessel->elements.size()); ++f) {
+      const Eigen::Vector2i& el = vessel->elements[f];
+      if (el[0] != j && el[1] != j) continue;
+      const int other = el[0] == j ? el[1] : el[0];
+      (side(other) == side(j) ? same_side : other_side).push_back(f);
     }
-    if (!separated) {
-      removed[e] = 1;
-      result.removed_elements.push_back(e);
+    if (same_side.empty()) continue;
+    const int node = vessel->frame_nodes[j];
+    // Copies: AddFrameNode grows the arrays these would refer into.
+    const Eigen::Vector3d rest_position = state->rest_positions().row(node).transpose();
+    const Eigen::Matrix3d rest_rotation = state->rest_rotation(node);
+    const int copy_node = state->AddFrameNode(rest_position, rest_rotation);
+    state->mutable_positions().row(copy_node) = state->positions().row(node);
+    state->mutable_velocities().row(copy_node) = state->velocities().row(node);
+    state->mutable_angular_velocities().row(copy_node) = state->angular_velocities().row(node);
+    state->mutable_rotation(copy_node) = state->rotation(node);
+    state->SetFixedTranslation(copy_node, state->fixed_translation(node));
+    state->SetFixedRotation(copy_node, state->fixed_rotation(node));
+    const int copy = static_cast<int>(vessel->frame_nodes.size());
+    vessel->frame_nodes.push_back(copy_node);
+    for (int f : other_side)
+      for (int c = 0; c < 2; ++c)
+        if (vessel->elements[f][c] == j) vessel->elements[f][c] = copy;
+    for (size_t s = 0; s < vessel->samples.size(); ++s) {
+      if (std::find(other_side.begin(), other_side.end(), vessel->sample_element[s]) ==
+          other_side.end())
+        continue;
+      for (int& frame : vessel->samples[s].frames)
+        if (frame == j) frame = copy;
     }
+    result.duplicated.emplace_back(node, copy_node);
   }
-  if (!result.removed_elements.empty()) {
-    // Drop the removed elements and their samples, renumbering the rest.
-    std::vector<int> new_index(vessel->elements.size(), -1);
-    std::vector<Eigen::Vector2i> elements;
-    for (size_t e = 0; e < vessel->elements.size(); ++e)
-      if (!removed[e]) {
-        new_index[e] = static_cast<int>(elements.size());
-        elements.push_back(vessel->elements[e]);
-      }
-    std::vector<FrameSample> samples;
-    std::vector<int> sample_element;
-    for (size_t s = 0; s < vessel->samples.size(); ++s)
-      if (new_index[vessel->sample_element[s]] >= 0) {
-        samples.push_back(vessel->samples[s]);
-        sample_element.push_back(new_index[vessel->sample_element[s]]);
-      }
-    vessel->elements = std::move(elements);
-    vessel->samples = std::move(samples);
-    vessel->sample_element = std::move(sample_element);
-  }
-  if (!result.crossed_elements.empty()) vessel->Rebuild(*state);
+  if (!result.duplicated.empty()) vessel->Rebuild(*state);
   return result;
 }
 

@@ -41,10 +41,10 @@ struct VesselOptions {
 // stiffness use lambda + 2 mu, which equals E for nu = 0. Give the vessel
 // nu = 0 (or E (1 + nu)(1 - 2 nu)/(1 - nu)) for the beam stiffness E I.
 struct Vessel {
-  std::vector<int> frame_nodes;         // state node of each chain frame
+  std::vector<int> frame_nodes;           // state node of each chain frame
   std::vector<Eigen::Vector2i> elements;  // chain frames (a, b) of each element
-  std::vector<FrameSample> samples;     // frames: chain frame indices
-  std::vector<int> sample_element;      // element of each sample
+  std::vector<FrameSample> samples;       // frames: chain frame indices
+  std::vector<int> sample_element;        // element of each sample
   Material material;
   VesselOptions options;
   std::unique_ptr<FrameModel> model;  // over frame_nodes and samples; rebuilt by a cut
@@ -66,8 +66,8 @@ Vessel MakeVessel(const RowMatX3d& centreline, const Material& material,
 // per branch at the scale of one element). Only crossings within radius_mm of
 // `point` count (a scissor cut of finite extent); default infinite.
 struct VesselCutPlane {
-  Eigen::Vector3d point = Eigen::Vector3d::Zero();      // mm
-  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();    // any length > 0
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();    // mm
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // any length > 0
   double radius_mm = std::numeric_limits<double>::infinity();
 };
 
@@ -75,18 +75,19 @@ struct VesselCutResult {
   // (old state node, new state node) of each duplicated frame.
   std::vector<std::pair<int, int>> duplicated;
   std::vector<int> crossed_elements;  // elements whose chord the plane crosses
-  std::vector<int> removed_elements;  // elements dropped (a piece of one element)
 };
 
 // Separates the vessel where the plane crosses a chord (current positions of
-// the frame nodes). For each crossed element (a, b) the frame nearer the plane
-// that has an element on its own side is duplicated (same rest and current
-// position, rotation, velocities and fixed flags) and the elements joining it
-// to the other side are re-skinned to the copy, so no sample couples the two
-// sides and no material is lost; the cut moves to that frame (at most half an
-// element from the plane). A crossed element whose frames both have no other
-// element is removed. Rebuilds vessel->model (terms holding the old model,
-// e.g. FrameGravity, must be remade; solvers pick up the new nodes).
+// the frame nodes; a frame on the plane counts as on the normal's negative
+// side). For each crossed element (a, b) the frame nearer the plane is
+// duplicated (same rest and current position, rotation, velocities and fixed
+// flags) and the elements joining it to the other side are re-skinned to the
+// copy, so no sample couples the two sides and no material is lost; the cut
+// moves to that frame (at most half an element from the plane). When that
+// frame is a free end (no element on its own side) the vessel is already open
+// there and nothing changes, so repeating a cut is a no-op. Rebuilds
+// vessel->model when a frame was duplicated (terms holding the old model, e.g.
+// FrameGravity, must be remade; solvers pick up the new nodes).
 VesselCutResult CutVessel(const VesselCutPlane& plane, GeneralisedState* state, Vessel* vessel);
 
 }  // namespace arreg::mechanics

@@ -78,7 +78,8 @@ VesselOptions Options(double radius, double spacing) {
 // Rigid motion of every frame of the state: x -> Q x + t, R -> Q R (from rest).
 void MoveRigidly(const Eigen::Matrix3d& q, const Eigen::Vector3d& t, GeneralisedState* state) {
   for (int n = 0; n < state->num_nodes(); ++n) {
-    state->mutable_positions().row(n) = (q * state->rest_positions().row(n).transpose() + t).transpose();
+    state->mutable_positions().row(n) =
+        (q * state->rest_positions().row(n).transpose() + t).transpose();
     state->mutable_rotation(n) = q * state->rest_rotation(n);
   }
 }
@@ -182,7 +183,8 @@ TEST(Vessel, SlenderCantileverSagsAsEulerBernoulli) {
   FrameGravity gravity(v.model.get(), {0, 0, -kStandardGravityMmPerS2});
   GeneralisedStaticOptions so;
   so.max_iterations = 100;
-  const GeneralisedSummary summary = GeneralisedStaticSolver(so).Solve(&state, {v.model.get(), &gravity});
+  const GeneralisedSummary summary =
+      GeneralisedStaticSolver(so).Solve(&state, {v.model.get(), &gravity});
   ASSERT_EQ(summary.status, StepStatus::kConverged) << summary.message;
   const double q = material.DensityKgPerMm3() * kStandardGravityMmPerS2 * kPi * radius * radius;
   const double ei = material.youngs_modulus_pa / 1000 * kPi * std::pow(radius, 4) / 4;
@@ -219,7 +221,6 @@ TEST(Vessel, CutSeparatesTheChain) {
       const VesselCutResult r = CutVessel(plane, &state, &v);
       ASSERT_EQ(r.crossed_elements.size(), 1u);
       ASSERT_EQ(r.duplicated.size(), 1u);
-      EXPECT_TRUE(r.removed_elements.empty());
       EXPECT_EQ(r.duplicated[0].first, v.frame_nodes[10]);  // nearest the plane
       EXPECT_EQ(state.num_nodes(), 22);
       for (int i = 0; i <= 10; ++i) near.insert(i);
@@ -258,8 +259,9 @@ TEST(Vessel, CutSeparatesTheChain) {
     double near_error = 0, far_error = 0;
     for (int i : near) {
       const int n = v.frame_nodes[i];
-      near_error = std::max({near_error, (state.positions().row(n) - state.rest_positions().row(n)).norm(),
-                             (state.rotation(n) - state.rest_rotation(n)).norm()});
+      near_error =
+          std::max({near_error, (state.positions().row(n) - state.rest_positions().row(n)).norm(),
+                    (state.rotation(n) - state.rest_rotation(n)).norm()});
     }
     for (int i : far) {
       const int n = v.frame_nodes[i];
@@ -267,9 +269,10 @@ TEST(Vessel, CutSeparatesTheChain) {
       far_error = std::max({far_error, (state.position(n) - rigid).norm(),
                             (state.rotation(n) - q * state.rest_rotation(n)).norm()});
     }
-    std::printf("cut: near piece max error %.3g, far piece max error %.3g, energy %.3g uJ (%d "
-                "Newton iterations)\n",
-                near_error, far_error, energies[1], iterations);
+    std::printf(
+        "cut: near piece max error %.3g, far piece max error %.3g, energy %.3g uJ (%d "
+        "Newton iterations)\n",
+        near_error, far_error, energies[1], iterations);
     EXPECT_LT(near_error, 1e-8);
     EXPECT_LT(far_error, 1e-6);
   }
@@ -278,22 +281,46 @@ TEST(Vessel, CutSeparatesTheChain) {
   EXPECT_LT(energies[1], 1e-12 * energies[0]);
 }
 
-// A cut crossing a single-element piece removes that element; a cut outside
-// the plane's radius does nothing.
-TEST(Vessel, CutRemovesAnIsolatedElementAndRespectsItsRadius) {
+// A plane through a frame duplicates that frame with its whole state; the
+// same cut again, a cut near a free end, and a crossing outside the cut's
+// radius change nothing.
+TEST(Vessel, CutThroughAFrameCopiesItsStateAndIsNotRepeated) {
   GeneralisedState state;
-  Vessel v = MakeVessel(Straight(10), Material{1e6, 0.0, 1000}, Options(1, 10), &state);
-  ASSERT_EQ(v.elements.size(), 1u);
+  Vessel v = MakeVessel(Straight(20), Material{1e6, 0.0, 1000}, Options(1, 5), &state);
+  ASSERT_EQ(v.frame_nodes.size(), 5u);
+  const int node = v.frame_nodes[2];  // at x = 10
+  state.mutable_positions().row(node) << 10.5, 0.3, -0.2;
+  state.mutable_rotation(node) = ExpSO3(Eigen::Vector3d(0.1, 0.2, 0.3)) * state.rotation(node);
+  state.mutable_velocities().row(node) << 1, 2, 3;
+  state.mutable_angular_velocities().row(node) << -1, 0.5, 4;
+  state.SetFixedTranslation(node, true);
   VesselCutPlane plane;
-  plane.point = {5, 20, 0};
+  plane.point = {10.5, 0, 0};
   plane.normal = {1, 0, 0};
-  plane.radius_mm = 10;
+  plane.radius_mm = 0.1;  // the crossing is 0.36 mm off the point
   EXPECT_TRUE(CutVessel(plane, &state, &v).crossed_elements.empty());
-  plane.radius_mm = 30;
+  plane.radius_mm = 1;
   const VesselCutResult r = CutVessel(plane, &state, &v);
-  EXPECT_EQ(r.removed_elements.size(), 1u);
-  EXPECT_TRUE(v.samples.empty());
-  EXPECT_TRUE(v.elements.empty());
+  ASSERT_EQ(r.duplicated.size(), 1u);
+  const int copy = r.duplicated[0].second;
+  EXPECT_EQ(r.duplicated[0].first, node);
+  EXPECT_EQ(state.rest_positions().row(copy), state.rest_positions().row(node));
+  EXPECT_EQ(state.rest_rotation(copy), state.rest_rotation(node));
+  EXPECT_EQ(state.positions().row(copy), state.positions().row(node));
+  EXPECT_EQ(state.rotation(copy), state.rotation(node));
+  EXPECT_EQ(state.velocities().row(copy), state.velocities().row(node));
+  EXPECT_EQ(state.angular_velocities().row(copy), state.angular_velocities().row(node));
+  EXPECT_TRUE(state.fixed_translation(copy));
+  EXPECT_FALSE(state.fixed_rotation(copy));
+  // Element (1, 2) keeps the frame, element (2, 3) has the copy.
+  EXPECT_EQ(v.elements[1], Eigen::Vector2i(1, 2));
+  EXPECT_EQ(v.elements[2], Eigen::Vector2i(5, 3));
+  EXPECT_EQ(v.model->num_frames(), 6);
+  // Repeated, and near a free end: nothing changes.
+  EXPECT_TRUE(CutVessel(plane, &state, &v).duplicated.empty());
+  plane.point = {19, 0, 0};
+  EXPECT_TRUE(CutVessel(plane, &state, &v).duplicated.empty());
+  EXPECT_EQ(state.num_nodes(), 6);
 }
 
 }  // namespace
