@@ -10,7 +10,7 @@
 
 #include "core/error.h"
 #include "core/mesh_generators.h"
-#include "dense_hessian_sink.h"
+#include "generalised_fd.h"
 #include "mechanics/frame_model.h"
 #include "mechanics/generalised_solver.h"
 #include "mechanics/generalised_terms.h"
@@ -22,26 +22,10 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-Eigen::VectorXd Gradient(const GeneralisedEnergyTerm& term, const GeneralisedState& state) {
-  Eigen::VectorXd g = Eigen::VectorXd::Zero(state.num_dofs());
-  term.AddGradient(state, &g);
-  return g;
-}
-
-Eigen::MatrixXd Hessian(const GeneralisedEnergyTerm& term, const GeneralisedState& state) {
-  testing::DenseHessianSink sink(state);
-  term.AddHessian(state, 1.0, &sink);
-  return sink.matrix();
-}
-
-// The state after a perturbation h along DOF k: x += h or R <- Exp(h e) R.
-GeneralisedState Perturbed(const GeneralisedState& state, int k, double h) {
-  GeneralisedState out = state;
-  Eigen::VectorXd increment = Eigen::VectorXd::Zero(state.num_dofs());
-  increment[k] = h;
-  out.ApplyIncrement(increment);
-  return out;
-}
+using testing::Gradient;
+using testing::GradientAlong;
+using testing::Hessian;
+using testing::Perturbed;
 
 // A soft tissue material (E = 3 kPa, nu = 0.45).
 Material Tissue() { return Material{3000.0, 0.45, 1000.0}; }
@@ -151,23 +135,6 @@ TEST(FrameShapeFunctions, BadInputThrows) {
       Error);
   EXPECT_THROW(SampleTetMesh(MakeBoxTetMesh({1, 1, 1}, {1, 1, 1}), 3), Error);
   EXPECT_THROW(SampleHexMesh(MakeBoxHexMesh({1, 1, 1}, {1, 1, 1}), 4), Error);
-}
-
-// Gradient of f(phi) = E(Exp(phi) R) at phi = h e_k (k a DOF): the term's
-// gradient about the perturbed state, with the perturbed node's rotation rows
-// mapped by J_l(h e)^T (so3.h), so that its difference quotient is the
-// symmetric Hessian of f at 0.
-Eigen::VectorXd GradientAlong(const GeneralisedEnergyTerm& term, const GeneralisedState& state,
-                              int k, double h) {
-  Eigen::VectorXd g = Gradient(term, Perturbed(state, k, h));
-  for (int n = 0; n < state.num_nodes(); ++n) {
-    const int rotation = state.dof_offset(n) + 3;
-    if (state.is_frame(n) && k >= rotation && k < rotation + 3)
-      g.segment<3>(rotation) =
-          LeftJacobianSO3(h * Eigen::Vector3d::Unit(k - rotation)).transpose() *
-          g.segment<3>(rotation);
-  }
-  return g;
 }
 
 // Central differences of the value against the gradient and of the gradient

@@ -12,7 +12,7 @@
 #include <set>
 
 #include "core/error.h"
-#include "dense_hessian_sink.h"
+#include "generalised_fd.h"
 #include "mechanics/generalised_solver.h"
 #include "mechanics/so3.h"
 #include "mechanics/units.h"
@@ -22,35 +22,10 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-Eigen::VectorXd Gradient(const GeneralisedEnergyTerm& term, const GeneralisedState& state) {
-  Eigen::VectorXd g = Eigen::VectorXd::Zero(state.num_dofs());
-  term.AddGradient(state, &g);
-  return g;
-}
-
-GeneralisedState Perturbed(const GeneralisedState& state, int k, double h) {
-  GeneralisedState out = state;
-  Eigen::VectorXd increment = Eigen::VectorXd::Zero(state.num_dofs());
-  increment[k] = h;
-  out.ApplyIncrement(increment);
-  return out;
-}
-
-// Gradient about the state perturbed along DOF k, rotation rows of the
-// perturbed node mapped by J_l(h e)^T, so its central difference is the
-// symmetric Hessian (as in frame_test.cc).
-Eigen::VectorXd GradientAlong(const GeneralisedEnergyTerm& term, const GeneralisedState& state,
-                              int k, double h) {
-  Eigen::VectorXd g = Gradient(term, Perturbed(state, k, h));
-  for (int n = 0; n < state.num_nodes(); ++n) {
-    const int rotation = state.dof_offset(n) + 3;
-    if (state.is_frame(n) && k >= rotation && k < rotation + 3)
-      g.segment<3>(rotation) =
-          LeftJacobianSO3(h * Eigen::Vector3d::Unit(k - rotation)).transpose() *
-          g.segment<3>(rotation);
-  }
-  return g;
-}
+using testing::Gradient;
+using testing::GradientAlong;
+using testing::Hessian;
+using testing::Perturbed;
 
 // Points on a circular arc of radius `radius` in the xy plane, `degrees` long.
 RowMatX3d Arc(double radius, double degrees, int points) {
@@ -132,9 +107,7 @@ TEST(Vessel, DerivativesMatchFiniteDifferences) {
     }
     const FrameModel& term = *v.model;
     const Eigen::VectorXd g = Gradient(term, state);
-    testing::DenseHessianSink sink(state);
-    term.AddHessian(state, 1.0, &sink);
-    const Eigen::MatrixXd& hessian = sink.matrix();
+    const Eigen::MatrixXd hessian = Hessian(term, state);
     const double h = 1e-6;
     Eigen::VectorXd fd_gradient(g.size());
     Eigen::MatrixXd fd_hessian(g.size(), g.size());
