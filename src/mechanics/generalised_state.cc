@@ -49,6 +49,21 @@ int GeneralisedState::AddFrameNode(const Eigen::Vector3d& rest_position,
   return node;
 }
 
+int GeneralisedState::DuplicateNode(int node) {
+  // Copies: adding a node grows the arrays that references would point into.
+  const Eigen::Vector3d rest_position = rest_positions_.row(node).transpose();
+  const Eigen::Matrix3d rest_rotation = rest_rotations_[node];
+  const int copy =
+      is_frame(node) ? AddFrameNode(rest_position, rest_rotation) : AddPointNode(rest_position);
+  positions_.row(copy) = positions_.row(node);
+  velocities_.row(copy) = velocities_.row(node);
+  angular_velocities_.row(copy) = angular_velocities_.row(node);
+  rotations_[copy] = rotations_[node];
+  SetFixedTranslation(copy, fixed_translation(node));
+  SetFixedRotation(copy, fixed_rotation(node));
+  return copy;
+}
+
 void GeneralisedState::ApplyIncrement(const Eigen::VectorXd& increment) {
   if (increment.size() != num_dofs_)
     throw Error("", "generalised increment",

@@ -30,6 +30,9 @@ class GeneralisedState {
   // Appends a frame node with rest orientation `rest_rotation` (current = rest);
   // returns its index. Throws arreg::Error if the matrix is not a rotation (1e-9).
   int AddFrameNode(const Eigen::Vector3d& rest_position, const Eigen::Matrix3d& rest_rotation);
+  // Appends a copy of `node` (rest and current position and rotation,
+  // velocities, fixed flags; a cut duplicating a node); returns its index.
+  int DuplicateNode(int node);
 
   int num_nodes() const { return static_cast<int>(is_frame_.size()); }
   int num_frames() const { return num_frames_; }

@@ -34,21 +34,6 @@ void CheckTriangles(const GeneralisedState& state, const std::vector<Eigen::Vect
     }
 }
 
-// Appends a copy of `node` (rest and current position, rotations, velocities, fixed flags).
-int CopyNode(GeneralisedState* state, int node) {
-  // Copies: AddFrameNode grows the vectors the references would point into.
-  const Eigen::Vector3d rest_position = Rest(*state, node);
-  const Eigen::Matrix3d rest_rotation = state->rest_rotation(node);
-  const int n = state->AddFrameNode(rest_position, rest_rotation);
-  state->mutable_positions().row(n) = state->positions().row(node);
-  state->mutable_velocities().row(n) = state->velocities().row(node);
-  state->mutable_angular_velocities().row(n) = state->angular_velocities().row(node);
-  state->mutable_rotation(n) = state->rotation(node);
-  state->SetFixedTranslation(n, state->fixed_translation(node));
-  state->SetFixedRotation(n, state->fixed_rotation(node));
-  return n;
-}
-
 // A node at parameter t on the edge (a, b): positions and velocities linear,
 // rest axes interpolated and re-orthonormalised, the current rotation the rest
 // one turned by the edge's relative rotation interpolated on SO(3).
@@ -173,7 +158,7 @@ void Separate(GeneralisedState* state, std::vector<Eigen::Vector3i>* triangles,
       int node = v;
       if (it == side_node.end()) {
         if (!side_node.empty()) {
-          node = CopyNode(state, v);
+          node = state->DuplicateNode(v);
           result->node_copies[v].push_back(node);
           ++result->duplicated_nodes;
         }

@@ -167,16 +167,7 @@ VesselCutResult CutVessel(const VesselCutPlane& plane, GeneralisedState* state, 
     }
     if (same_side.empty()) continue;
     const int node = vessel->frame_nodes[j];
-    // Copies: AddFrameNode grows the arrays these would refer into.
-    const Eigen::Vector3d rest_position = state->rest_positions().row(node).transpose();
-    const Eigen::Matrix3d rest_rotation = state->rest_rotation(node);
-    const int copy_node = state->AddFrameNode(rest_position, rest_rotation);
-    state->mutable_positions().row(copy_node) = state->positions().row(node);
-    state->mutable_velocities().row(copy_node) = state->velocities().row(node);
-    state->mutable_angular_velocities().row(copy_node) = state->angular_velocities().row(node);
-    state->mutable_rotation(copy_node) = state->rotation(node);
-    state->SetFixedTranslation(copy_node, state->fixed_translation(node));
-    state->SetFixedRotation(copy_node, state->fixed_rotation(node));
+    const int copy_node = state->DuplicateNode(node);
     const int copy = static_cast<int>(vessel->frame_nodes.size());
     vessel->frame_nodes.push_back(copy_node);
     for (int f : other_side)
