@@ -22,11 +22,6 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-using testing::Gradient;
-using testing::GradientAlong;
-using testing::Hessian;
-using testing::Perturbed;
-
 // Points on a circular arc of radius `radius` in the xy plane, `degrees` long.
 RowMatX3d Arc(double radius, double degrees, int points) {
   RowMatX3d c(points, 3);
@@ -106,16 +101,18 @@ TEST(Vessel, DerivativesMatchFiniteDifferences) {
       state.mutable_rotation(n) = ExpSO3((angle + 0.1 * u(rng)) * axis) * state.rotation(n);
     }
     const FrameModel& term = *v.model;
-    const Eigen::VectorXd g = Gradient(term, state);
-    const Eigen::MatrixXd hessian = Hessian(term, state);
+    const Eigen::VectorXd g = testing::Gradient(term, state);
+    const Eigen::MatrixXd hessian = testing::Hessian(term, state);
     const double h = 1e-6;
     Eigen::VectorXd fd_gradient(g.size());
     Eigen::MatrixXd fd_hessian(g.size(), g.size());
     for (int k = 0; k < g.size(); ++k) {
-      fd_gradient[k] =
-          (term.Value(Perturbed(state, k, h)) - term.Value(Perturbed(state, k, -h))) / (2 * h);
+      fd_gradient[k] = (term.Value(testing::Perturbed(state, k, h)) -
+                        term.Value(testing::Perturbed(state, k, -h))) /
+                       (2 * h);
       fd_hessian.col(k) =
-          (GradientAlong(term, state, k, h) - GradientAlong(term, state, k, -h)) / (2 * h);
+          (testing::GradientAlong(term, state, k, h) - testing::GradientAlong(term, state, k, -h)) /
+          (2 * h);
     }
     EXPECT_LT((fd_gradient - g).norm(), 1e-6 * g.norm()) << "angle " << angle;
     EXPECT_LT((fd_hessian - hessian).norm(), 1e-6 * hessian.norm()) << "angle " << angle;
@@ -134,7 +131,8 @@ TEST(Vessel, CurvedVesselHasNoEnergyUnderRigidMotion) {
     const Eigen::Matrix3d q = ExpSO3(degrees / 180 * kPi * Eigen::Vector3d(1, 2, -1).normalized());
     MoveRigidly(q, {3, -7, 11}, &state);
     EXPECT_LT(std::abs(v.model->Value(state)), 1e-12 * scale) << degrees;
-    EXPECT_LT(Gradient(*v.model, state).norm(), 1e-10 * Gradient(*v.model, stretched).norm())
+    EXPECT_LT(testing::Gradient(*v.model, state).norm(),
+              1e-10 * testing::Gradient(*v.model, stretched).norm())
         << degrees;
   }
 }
