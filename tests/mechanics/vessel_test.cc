@@ -137,6 +137,26 @@ TEST(Vessel, CurvedVesselHasNoEnergyUnderRigidMotion) {
   }
 }
 
+// The weights are not linearly complete across the section, so turning all
+// frames about their own positions strains the tube: only the 6 rigid modes
+// are free.
+TEST(Vessel, FreeVesselHasOnlyRigidZeroModes) {
+  GeneralisedState state;
+  VesselOptions o = Options(1.5, 3);
+  o.model.project_hessian = false;
+  const Vessel v = MakeVessel(Arc(20, 120, 25), Material{1e6, 0.3, 1000}, o, &state);
+  const Eigen::VectorXd eigenvalues =
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(testing::Hessian(*v.model, state))
+          .eigenvalues();
+  int zero = 0;
+  for (int k = 0; k < eigenvalues.size(); ++k)
+    zero += std::abs(eigenvalues[k]) < 1e-9 * eigenvalues.maxCoeff();
+  std::printf("free vessel: %d zero modes, smallest non-zero eigenvalue %.3g of %.3g\n", zero,
+              eigenvalues[6], eigenvalues.maxCoeff());
+  EXPECT_EQ(zero, 6);
+  EXPECT_GT(eigenvalues[6], 1e-7 * eigenvalues.maxCoeff());
+}
+
 // Straight vessel along x, clamped at x = 0, sagging under its own weight.
 // Euler-Bernoulli: tip deflection q L^4 / (8 E I), q = rho g pi r^2,
 // I = pi r^4 / 4. nu = 0, so lambda + 2 mu = E (rigid cross-sections). The
