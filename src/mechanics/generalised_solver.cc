@@ -234,21 +234,8 @@ GeneralisedSummary GeneralisedImplicitEuler::Step(
   const double h = options_.dt_s / options_.substeps;
   for (int s = 0; s < options_.substeps; ++s) {
     const GeneralisedSummary sub = SubStep(state, elastic, others, inertia, h);
-    total.newton_iterations += sub.newton_iterations;
-    total.linear_iterations += sub.linear_iterations;
-    total.linear_solves += sub.linear_solves;
-    total.factorizations += sub.factorizations;
-    total.line_search_cuts += sub.line_search_cuts;
-    total.last_increment_mm = sub.last_increment_mm;
     total.last_increment_rad = sub.last_increment_rad;
-    total.assembly_ms += sub.assembly_ms;
-    total.solve_ms += sub.solve_ms;
-    total.pattern_rebuilt = total.pattern_rebuilt || sub.pattern_rebuilt;
-    if (sub.status != StepStatus::kConverged) {
-      total.status = sub.status;
-      total.message = sub.message;
-      if (sub.status == StepStatus::kLinearSolveFailed) break;
-    }
+    if (!AccumulateSubStep(sub, &total)) break;
   }
   total.total_ms = Ms(t0);
   return total;

@@ -96,6 +96,27 @@ struct StepSummary {
   std::string message;
 };
 
+// Adds a sub-step's counts and timings to the step's summary (StepSummary or
+// GeneralisedSummary: the fields they share). The last sub-step's increment is
+// kept; a failed status is kept with its message. Returns false when the step
+// must stop (the linear solve failed).
+template <typename Summary>
+bool AccumulateSubStep(const Summary& sub, Summary* total) {
+  total->newton_iterations += sub.newton_iterations;
+  total->linear_iterations += sub.linear_iterations;
+  total->linear_solves += sub.linear_solves;
+  total->factorizations += sub.factorizations;
+  total->line_search_cuts += sub.line_search_cuts;
+  total->last_increment_mm = sub.last_increment_mm;
+  total->assembly_ms += sub.assembly_ms;
+  total->solve_ms += sub.solve_ms;
+  total->pattern_rebuilt = total->pattern_rebuilt || sub.pattern_rebuilt;
+  if (sub.status == StepStatus::kConverged) return true;
+  total->status = sub.status;
+  total->message = sub.message;
+  return sub.status != StepStatus::kLinearSolveFailed;
+}
+
 // Caches the sparsity pattern and mass of a state; rebuilt on topology change.
 class SystemCache {
  public:
