@@ -338,7 +338,7 @@ int RunBenchAccuracy(int argc, char** argv) {
                    "generated scenes (keyed by their parameters), runs, logs and results");
   parser.AddString("phantom-tool", &s.phantom_tool, "PATH", "the phantom scene generator");
   parser.AddStringList("set", &s.overrides, "SECTION.KEY=VALUE",
-                       "override a module option of every scene (docs/pipeline.md), e.g. "
+                       "override a module option of every scene (docs/pipeline-options.md), e.g. "
                        "tracking.redetect_every_frames=5");
   parser.AddFlag("keep-runs", &s.keep_runs, "keep the run folders (DIR/runs/NAME/...)");
   parser.AddDouble("found-within", &s.metrics.found_within_mm, "MM",

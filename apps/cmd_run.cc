@@ -77,7 +77,7 @@ int RunRun(int argc, char** argv) {
   parser.AddString("scene", &scene_path, "S.json", "scene file (docs/scene-format.md)", true);
   parser.AddString("out", &out_dir, "DIR", "output folder (created)", true);
   parser.AddStringList("set", &overrides, "SECTION.KEY=VALUE",
-                       "set a module option of the scene (docs/pipeline.md), e.g. "
+                       "set a module option of the scene (docs/pipeline-options.md), e.g. "
                        "cutting.enabled=false or tracking.redetect_every_frames=5");
   parser.AddFlag("no-topology", &no_topology, "register without cut handling");
   parser.AddInt("frames", &frames, "N", "process at most N frames (-1: all)");
@@ -104,7 +104,7 @@ int RunRun(int argc, char** argv) {
   parser.AddInt("substeps", &substeps, "N", "implicit Euler sub-steps per frame");
   parser.AddDouble("output-spring-factor", &output_factor, "F",
                    "output the quasi-static fit with F times stiffer springs; 0 = the "
-                   "dynamic model (docs/pipeline.md, \"Output fit\")");
+                   "dynamic model (docs/springs.md, \"Output fit\")");
   parser.AddString("lifting", &lifting, "surface|plane", "lifting target (default surface)");
   parser.AddString("lift-update", &lift_update, "intercept|raycast",
                    "surface target update (default intercept, thesis eq. 7.1)");
@@ -113,7 +113,7 @@ int RunRun(int argc, char** argv) {
                  "record per-frame debug state in DIR/debug/ for `arreg debug`, and the inputs of "
                  "any refused internal-structure split (docs/debug.md)");
   parser.SetEpilog(
-      "Options given here override the scene's module sections (docs/pipeline.md).\n"
+      "Options given here override the scene's module sections (docs/pipeline-options.md).\n"
       "Writes in DIR: overlay.mp4, frames.jsonl, run.json, mesh/NNNNNN.vtk, surface/NNNNNN.obj,\n"
       "internal/NNNNNN.obj (docs/run-format.md). Ctrl-C stops after the current frame and\n"
       "leaves complete outputs.");

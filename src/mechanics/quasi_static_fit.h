@@ -19,7 +19,7 @@ namespace arreg::mechanics {
 //   Phi(y) = E_el(y) + s E_springs(y) + E_other(y) + 1/(2 h^2) |y - x|_M^2,
 // the springs made s times stiffer. The last term only keeps the system definite
 // (a piece held by no spring stays where it is); with h = 1 s it is ~1e-3 of the
-// springs' stiffness on the scenes of docs/pipeline.md, so y is the quasi-static
+// springs' stiffness on the scenes of docs/springs.md, so y is the quasi-static
 // equilibrium: no inertia, no damping, and a spring lag that is s times smaller.
 struct QuasiStaticFitOptions {
   double spring_factor = 6.0;          // s (> 0); default 6

@@ -293,7 +293,7 @@ class ConfigurationProbe : public FrameObserver {
 
 TEST(Pipeline, OutputFitChangesWhatIsShownOnly) {
   // The box is stretched along x by 1 % a frame for 12 frames, then held. The output fit
-  // (docs/pipeline.md, "Output fit") moves what is drawn and saved; the dynamic model, which
+  // (docs/springs.md, "Output fit") moves what is drawn and saved; the dynamic model, which
   // detection and lifting use, is the same as without it. With the fit off (factor 0) the
   // dynamic model is shown. (That the fit follows the targets more closely is tested in
   // tests/mechanics/quasi_static_fit_test.cc, its effect on accuracy in tests/e2e.)
@@ -697,7 +697,7 @@ TEST(PipelineOptions, SpringStiffnessKeysRoundTrip) {
 }
 
 // k = kappa x E x V / (A x N): linear in kappa, E and V, inverse in A and N; the documented
-// reference (docs/pipeline.md): band-stretch, E = 100 kPa, V = 86,400 mm^3, A = 10,960 mm^2
+// reference (docs/springs.md): band-stretch, E = 100 kPa, V = 86,400 mm^3, A = 10,960 mm^2
 // facing the camera, 232 springs gives 578 N/m at the default kappa 170.
 TEST(SpringStiffness, ScalesWithModulusVolumeAreaAndSprings) {
   const MechanicsStageOptions o;

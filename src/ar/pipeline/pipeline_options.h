@@ -28,7 +28,7 @@ struct MechanicsStageOptions {
   // target motion by ~1 / (1 + kappa) of it) while elasticity still interpolates between
   // features; it is the median of what the validated 500 N/m was on the 100 kPa band and
   // 20 kPa kidney scenes (144-200), and gives ten times that on the 1 MPa band
-  // (docs/pipeline.md, "Spring stiffness").
+  // (docs/springs.md, "Spring stiffness").
   double spring_stiffness_relative = 170.0;
   // Volumetric part of the material (mechanics::CorotationalOptions::volume_term), for the
   // dynamic model and the output fit: "jacobian" lambda/2 (det F - 1)^2 (default) or "linear"
@@ -64,7 +64,7 @@ struct MechanicsStageOptions {
   // its springs made this many times stiffer (mechanics::QuasiStaticFit: one Newton step from
   // the frame's state, same linear solver); cut detection, lifting and the next frame go on
   // from the dynamic model, whose springs the detector's measure is calibrated on. 0 shows
-  // the dynamic model itself. Dimensionless, >= 0; default 6 (docs/pipeline.md, "Output fit").
+  // the dynamic model itself. Dimensionless, >= 0; default 6 (docs/springs.md, "Output fit").
   double output_spring_factor = 6.0;
   void Check() const;
 };
@@ -158,7 +158,7 @@ struct CuttingStageOptions {
   void Check() const;
 };
 
-// How the registered organ is drawn (docs/pipeline.md, "Overlay").
+// How the registered organ is drawn (docs/overlay.md).
 enum class OverlayStyle {
   kContour,  // its outline and cut edges as lines, the video inside left as it is
   kTint,     // a translucent shaded surface (organ_opacity, organ_color)
@@ -240,7 +240,7 @@ struct PipelineOptions {
   void Check() const;
 };
 
-// The feature spring stiffness of a run, resolved at frame 0 (docs/pipeline.md, "Spring
+// The feature spring stiffness of a run, resolved at frame 0 (docs/springs.md, "Spring
 // stiffness").
 struct SpringStiffness {
   double n_per_m = 0;           // per spring [N/m]

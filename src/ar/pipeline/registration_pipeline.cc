@@ -597,7 +597,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       ms.cutting = since(t0);
     }
 
-    // The output configuration (docs/pipeline.md, "Output fit"), embedded structures, the
+    // The output configuration (docs/springs.md, "Output fit"), embedded structures, the
     // boundary; statistics.
     t0 = now();
     const RowMatX3d* shown = &state.positions();
