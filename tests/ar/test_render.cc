@@ -464,7 +464,7 @@ TEST(CoverageLayer, OverlayMatchesTheSupersampledReference) {
     for (int x = 0; x < frame.cols; ++x)
       frame.at<cv::Vec3b>(y, x) = cv::Vec3b(60 + (x * 7 + y * 3) % 90, 40 + (x ^ y) % 60, 150);
   std::vector<pipeline::OverlayStructure> internal = {
-      {&tumour.vertices, &tumour.faces, Eigen::Vector3d(1, 0.9, 0.1), 1.0}};
+      {&tumour.vertices, &tumour.faces, Eigen::Vector3d(1, 0.9, 0.1), 1.0, ""}};
   cv::Mat out[2];
   for (int k = 0; k < 2; ++k) {
     pipeline::RenderStageOptions o;
