@@ -11,6 +11,10 @@ find_library(CHOLMOD_LIBRARY cholmod REQUIRED)
 add_library(arreg_cholmod INTERFACE)
 target_include_directories(arreg_cholmod SYSTEM INTERFACE "${CHOLMOD_INCLUDE_DIR}")
 target_link_libraries(arreg_cholmod INTERFACE "${CHOLMOD_LIBRARY}")
+# CHOLMOD's OpenMP runtime, linked directly so that the solver can keep its loops serial
+# (cholmod_solver.cc); no -fopenmp for our own sources.
+find_package(OpenMP REQUIRED COMPONENTS CXX)
+target_link_libraries(arreg_cholmod INTERFACE ${OpenMP_CXX_LIBRARIES})
 find_package(CGAL 5.5 REQUIRED)
 find_package(Ceres 2.0 REQUIRED)
 if(ARREG_BUILD_TESTS)
