@@ -631,9 +631,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       for (size_t k = 0; k < internal.size(); ++k)
         layers_internal.push_back(
             {&internal[k].vertices, &internal[k].faces, impl_->model.internal_colors[k],
-             impl_->model.internal_opacity[k],
-             k < impl_->model.internal_names.size() ? impl_->model.internal_names[k]
-                                                    : std::string()});
+             impl_->model.internal_opacity[k], impl_->model.internal_names[k]});
       OverlayLayers layers;
       layers.feature_pixels = &pixels;
       layers.targets_mm = &targets;
