@@ -64,8 +64,9 @@ std::string ReadPath(JsonObjectReader& reader, const std::string& key, const Sce
   return CheckedPath(value, reader.file(), reader.KeyPath(key), scene, check_exists, kind);
 }
 
-Material ReadMaterial(JsonObjectReader& r) {
-  Material m;
+// Reads a material object; absent keys keep the values of `defaults`.
+Material ReadMaterial(JsonObjectReader& r, const Material& defaults = Material()) {
+  Material m = defaults;
   r.Optional("youngs_modulus_pa", &m.youngs_modulus_pa);
   r.Optional("poisson_ratio", &m.poisson_ratio);
   r.Optional("density_kg_m3", &m.density_kg_m3);
@@ -74,6 +75,65 @@ Material ReadMaterial(JsonObjectReader& r) {
   r.Finish();
   m.Check(r.file(), r.path());
   return m;
+}
+
+nlohmann::json MaterialToJson(const Material& m) {
+  return {{"youngs_modulus_pa", m.youngs_modulus_pa},
+          {"poisson_ratio", m.poisson_ratio},
+          {"density_kg_m3", m.density_kg_m3},
+          {"rayleigh_mass_per_s", m.rayleigh_mass_per_s},
+          {"rayleigh_stiffness_s", m.rayleigh_stiffness_s}};
+}
+
+// Keys that belong to one type only are errors on the other ("radius_mm" on a shell).
+void RejectKeys(JsonObjectReader& r, const std::vector<std::string>& keys,
+                const std::string& type) {
+  for (const std::string& key : keys)
+    if (r.Has(key)) r.Fail(key, "not a key of a " + type + " (see docs/scene-format.md)");
+}
+
+ThinStructure ReadThinStructure(JsonObjectReader& r, const Scene& scene, bool check) {
+  ThinStructure t;
+  r.Required("name", &t.name);
+  if (t.name.empty()) r.Fail("name", "must not be empty");
+  r.RequiredChoice("type", {"shell", "vessel"}, &t.type);
+  if (t.type == "shell") {
+    RejectKeys(r, {"centreline", "radius_mm"}, "shell");
+    t.mesh_path = ReadPath(r, "mesh", scene, true, check, PathKind::kFile);
+    t.visual_mesh_path = ReadPath(r, "visual_mesh", scene, false, check, PathKind::kFile);
+    r.Required("thickness_mm", &t.thickness_mm);
+    r.CheckPositive("thickness_mm", t.thickness_mm);
+  } else {
+    RejectKeys(r, {"mesh", "visual_mesh", "thickness_mm"}, "vessel");
+    t.centreline_path = ReadPath(r, "centreline", scene, true, check, PathKind::kFile);
+    r.Required("radius_mm", &t.radius_mm);
+    r.CheckPositive("radius_mm", t.radius_mm);
+  }
+  if (!std::isfinite(t.thickness_mm) || !std::isfinite(t.radius_mm))
+    r.Fail(t.type == "shell" ? "thickness_mm" : "radius_mm", "must be finite");
+  t.material = scene.material;
+  if (auto material = r.OptionalObject("material"))
+    t.material = ReadMaterial(*material, scene.material);
+  r.Optional("fixed_vertices", &t.fixed_vertices);
+  std::set<int> fixed;
+  for (int v : t.fixed_vertices) {
+    if (v < 0) r.Fail("fixed_vertices", "vertex indices must be >= 0, got " + std::to_string(v));
+    if (!fixed.insert(v).second)
+      r.Fail("fixed_vertices", "vertex " + std::to_string(v) + " is listed twice");
+  }
+  r.OptionalChoice("attach", {"none", "model"}, &t.attach);
+  r.Optional("attach_distance_mm", &t.attach_distance_mm);
+  r.CheckNonNegative("attach_distance_mm", t.attach_distance_mm);
+  if (!std::isfinite(t.attach_distance_mm)) r.Fail("attach_distance_mm", "must be finite");
+  if (r.Optional("color", &t.color)) {
+    for (int i = 0; i < 3; ++i)
+      if (!(t.color[i] >= 0.0 && t.color[i] <= 1.0))
+        r.Fail("color", "RGB components must be in [0, 1] (divide 0-255 values by 255)");
+  }
+  r.Optional("opacity", &t.opacity);
+  r.CheckInRange("opacity", t.opacity, 0.0, 1.0);
+  r.Finish();
+  return t;
 }
 
 std::string PathForWriting(const std::string& path, const std::string& directory) {
@@ -122,16 +182,25 @@ Scene ParseScene(const nlohmann::json& json, const std::string& path,
     scene.mm_per_unit = scene.units == "m" ? 1000.0 : 1.0;
   root.Optional("description", &scene.description);
 
-  // model: "mesh path" or {"mesh": ..., "world_from_model": {...}}
-  {
+  // The top-level material first: thin structures default to it.
+  if (auto material = root.OptionalObject("material")) scene.material = ReadMaterial(*material);
+
+  // model: "mesh path" or {"mesh": ..., "world_from_model": {...}}; optional when the
+  // scene has thin structures (a membrane-only scene).
+  const bool has_thin = root.Has("thin_structures") && !json["thin_structures"].empty();
+  if (!has_thin || root.Has("model")) {
     nlohmann::json model;
+    if (!root.Has("model"))
+      throw Error(path, "model",
+                  "required key is missing (a scene needs a model or at least one thin "
+                  "structure)");
     root.Required("model", &model);
     if (model.is_string()) {
       scene.model_mesh_path =
           CheckedPath(model.get<std::string>(), path, "model", scene, check, PathKind::kFile);
     } else {
       JsonObjectReader r = root.Object("model");
-      scene.model_mesh_path = ReadPath(r, "mesh", scene, true, check, PathKind::kFile);
+      scene.model_mesh_path = ReadPath(r, "mesh", scene, !has_thin, check, PathKind::kFile);
       if (auto placement = r.OptionalObject("world_from_model"))
         scene.world_from_model = ReadRigidTransformJson(*placement);
       r.Finish();
@@ -155,6 +224,11 @@ Scene ParseScene(const nlohmann::json& json, const std::string& path,
     r.Finish();
     scene.internal_structures.push_back(std::move(s));
   }
+  for (JsonObjectReader& r : root.ObjectArray("thin_structures")) {
+    ThinStructure t = ReadThinStructure(r, scene, check);
+    if (!names.insert(t.name).second) r.Fail("name", "duplicate structure name \"" + t.name + "\"");
+    scene.thin_structures.push_back(std::move(t));
+  }
 
   // camera: inline object or calibration file path.
   {
@@ -177,8 +251,6 @@ Scene ParseScene(const nlohmann::json& json, const std::string& path,
   scene.video_path = ReadPath(root, "video", scene, true, check, PathKind::kFileOrDirectory);
   scene.ground_truth_path =
       ReadPath(root, "ground_truth", scene, false, check, PathKind::kDirectory);
-
-  if (auto material = root.OptionalObject("material")) scene.material = ReadMaterial(*material);
 
   for (const std::string& name : kModuleSections) {
     if (auto section = root.OptionalObject(name)) *ModuleSection(&scene, name) = section->json();
@@ -228,10 +300,15 @@ nlohmann::json SceneToJson(const Scene& scene, const std::string& directory) {
   nlohmann::json j;
   j["units"] = scene.units;
   if (!scene.description.empty()) j["description"] = scene.description;
-  nlohmann::json model = {{"mesh", PathForWriting(scene.model_mesh_path, directory)}};
-  if (scene.world_from_model.matrix() != Eigen::Matrix4d::Identity())
-    model["world_from_model"] = RigidTransformToJson(scene.world_from_model);
-  j["model"] = model;
+  const bool identity = scene.world_from_model.matrix() == Eigen::Matrix4d::Identity();
+  if (!scene.model_mesh_path.empty()) {
+    nlohmann::json model = {{"mesh", PathForWriting(scene.model_mesh_path, directory)}};
+    if (!identity) model["world_from_model"] = RigidTransformToJson(scene.world_from_model);
+    j["model"] = model;
+  } else if (!identity) {
+    // Without a model mesh the placement still applies to the thin structures.
+    j["model"] = {{"world_from_model", RigidTransformToJson(scene.world_from_model)}};
+  }
   if (!scene.internal_structures.empty()) {
     nlohmann::json list = nlohmann::json::array();
     for (const InternalStructure& s : scene.internal_structures) {
@@ -242,16 +319,34 @@ nlohmann::json SceneToJson(const Scene& scene, const std::string& directory) {
     }
     j["internal_structures"] = list;
   }
+  if (!scene.thin_structures.empty()) {
+    nlohmann::json list = nlohmann::json::array();
+    for (const ThinStructure& t : scene.thin_structures) {
+      nlohmann::json o = {{"name", t.name}, {"type", t.type}};
+      if (t.type == "shell") {
+        o["mesh"] = PathForWriting(t.mesh_path, directory);
+        if (!t.visual_mesh_path.empty())
+          o["visual_mesh"] = PathForWriting(t.visual_mesh_path, directory);
+        o["thickness_mm"] = t.thickness_mm;
+      } else {
+        o["centreline"] = PathForWriting(t.centreline_path, directory);
+        o["radius_mm"] = t.radius_mm;
+      }
+      o["material"] = MaterialToJson(t.material);
+      if (!t.fixed_vertices.empty()) o["fixed_vertices"] = t.fixed_vertices;
+      o["attach"] = t.attach;
+      o["attach_distance_mm"] = t.attach_distance_mm;
+      o["color"] = {t.color.x(), t.color.y(), t.color.z()};
+      o["opacity"] = t.opacity;
+      list.push_back(o);
+    }
+    j["thin_structures"] = list;
+  }
   j["camera"] = CameraToJson(scene.camera);
   j["video"] = PathForWriting(scene.video_path, directory);
   if (!scene.ground_truth_path.empty())
     j["ground_truth"] = PathForWriting(scene.ground_truth_path, directory);
-  const Material& m = scene.material;
-  j["material"] = {{"youngs_modulus_pa", m.youngs_modulus_pa},
-                   {"poisson_ratio", m.poisson_ratio},
-                   {"density_kg_m3", m.density_kg_m3},
-                   {"rayleigh_mass_per_s", m.rayleigh_mass_per_s},
-                   {"rayleigh_stiffness_s", m.rayleigh_stiffness_s}};
+  j["material"] = MaterialToJson(scene.material);
   for (const std::string& name : kModuleSections) {
     const nlohmann::json& section = ModuleSection(scene, name);
     if (!section.is_null() && !section.empty()) j[name] = section;
@@ -260,7 +355,25 @@ nlohmann::json SceneToJson(const Scene& scene, const std::string& directory) {
 }
 
 void WriteScene(const std::string& path, const Scene& scene) {
-  ARREG_CHECK_INPUT(!scene.model_mesh_path.empty(), path, "model.mesh", "scene has no model mesh");
+  ARREG_CHECK_INPUT(!scene.model_mesh_path.empty() || !scene.thin_structures.empty(), path,
+                    "model.mesh", "scene has neither a model mesh nor a thin structure");
+  for (size_t i = 0; i < scene.thin_structures.size(); ++i) {
+    const ThinStructure& t = scene.thin_structures[i];
+    const std::string key = "thin_structures[" + std::to_string(i) + "]";
+    ARREG_CHECK_INPUT(!t.name.empty(), path, key + ".name", "must not be empty");
+    ARREG_CHECK_INPUT(t.type == "shell" || t.type == "vessel", path, key + ".type",
+                      "must be \"shell\" or \"vessel\", got \"", t.type, "\"");
+    const bool shell = t.type == "shell";
+    ARREG_CHECK_INPUT(!(shell ? t.mesh_path : t.centreline_path).empty(), path,
+                      key + (shell ? ".mesh" : ".centreline"), "path is empty");
+    const double size = shell ? t.thickness_mm : t.radius_mm;
+    ARREG_CHECK_INPUT(size > 0.0 && std::isfinite(size), path,
+                      key + (shell ? ".thickness_mm" : ".radius_mm"), "must be positive, got ",
+                      size);
+    ARREG_CHECK_INPUT(t.attach == "none" || t.attach == "model", path, key + ".attach",
+                      "must be \"none\" or \"model\", got \"", t.attach, "\"");
+    t.material.Check(path, key + ".material");
+  }
   ARREG_CHECK_INPUT(!scene.video_path.empty(), path, "video", "scene has no video path");
   scene.camera.Check(path, "camera");
   scene.material.Check(path, "material");

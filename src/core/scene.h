@@ -31,6 +31,25 @@ struct InternalStructure {
   double opacity = 1.0;                                        // in [0, 1]
 };
 
+// A thin structure registered with (or instead of) the organ: a shell (a triangle
+// mid-surface with a thickness, src/mechanics/bezier_shell.h) or a vessel (a
+// centreline tree with a radius, src/mechanics/vessel.h). docs/scene-format.md.
+struct ThinStructure {
+  std::string name;                 // unique among thin and internal structures
+  std::string type;                 // "shell" or "vessel"
+  std::string mesh_path;            // shell: triangle mid-surface (resolved), model frame and units
+  std::string visual_mesh_path;     // shell, optional: finer surface drawn and scored, "" if none
+  std::string centreline_path;      // vessel: OBJ with v lines and l polylines (resolved)
+  double thickness_mm = 0.0;        // shell: > 0, mm
+  double radius_mm = 0.0;           // vessel: > 0, mm
+  Material material;                // default: the scene's top-level material
+  std::vector<int> fixed_vertices;  // indices into mesh / centreline vertices, held clamped
+  std::string attach = "none";      // "none" or "model" (tied to the tet model by proximity)
+  double attach_distance_mm = 1.0;  // >= 0, mm: shell vertices this close to the model surface
+  Eigen::Vector3d color = Eigen::Vector3d(1.0, 1.0, 0.0);  // RGB, each in [0, 1]
+  double opacity = 1.0;                                    // in [0, 1]
+};
+
 struct Scene {
   std::string path;       // the scene file as given to ReadScene ("" for in-memory scenes)
   std::string directory;  // folder that relative paths are resolved against
@@ -41,11 +60,13 @@ struct Scene {
   double mm_per_unit = 1.0;  // 1 for "mm", 1000 for "m"
   std::string description;   // free text, optional
 
-  std::string model_mesh_path;  // tetrahedral mesh of the organ (resolved)
+  // Tetrahedral mesh of the organ (resolved); "" for a scene of thin structures only.
+  std::string model_mesh_path;
   // Rigid placement of the model mesh (after unit scaling) in the world frame,
-  // translation in mm. Identity when absent.
+  // translation in mm. Identity when absent. Applies to thin structures too.
   Eigen::Isometry3d world_from_model = Eigen::Isometry3d::Identity();
   std::vector<InternalStructure> internal_structures;
+  std::vector<ThinStructure> thin_structures;
 
   PinholeCamera camera;
   std::string camera_file;  // calibration file the camera came from, "" if inline
@@ -74,9 +95,10 @@ struct ReadSceneOptions {
   bool check_files_exist = true;  // default true
 };
 
-// Reads and validates a scene file. Required keys: model, camera, video;
-// unknown top-level keys (and unknown keys in model, camera, material,
-// internal_structures) are errors naming them. Every error names the file and key.
+// Reads and validates a scene file. Required keys: camera, video, and model
+// unless thin_structures is non-empty; unknown top-level keys (and unknown keys
+// in model, camera, material, internal_structures, thin_structures) are errors
+// naming them. Every error names the file and key.
 Scene ReadScene(const std::string& path, const ReadSceneOptions& options = {});
 // Same for JSON already parsed; `path` places the scene (relative paths, messages).
 Scene ParseScene(const nlohmann::json& json, const std::string& path,

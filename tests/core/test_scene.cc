@@ -279,6 +279,168 @@ TEST(Scene, FileChecksCanBeTurnedOff) {
   EXPECT_THROW(ReadScene(f.Write(j)), Error);
 }
 
+// A scene with a shell and a vessel beside the organ.
+json WithThinStructures(SceneFixture& f) {
+  Touch(f.dir + "/meshes/membrane.obj");
+  Touch(f.dir + "/meshes/membrane_fine.obj");
+  Touch(f.dir + "/meshes/artery.obj");
+  json j = f.scene;
+  j["thin_structures"] = json::parse(R"([
+    {"name": "membrane", "type": "shell", "mesh": "meshes/membrane.obj",
+     "visual_mesh": "meshes/membrane_fine.obj", "thickness_mm": 0.5,
+     "material": {"youngs_modulus_pa": 20000}, "fixed_vertices": [0, 7],
+     "attach": "model", "attach_distance_mm": 2, "color": [0.9, 0.6, 0.5], "opacity": 0.7},
+    {"name": "artery", "type": "vessel", "centreline": "meshes/artery.obj", "radius_mm": 1.5}
+  ])");
+  return j;
+}
+
+TEST(Scene, ThinStructuresParse) {
+  SceneFixture f("scene_thin");
+  const Scene s = ReadScene(f.Write(WithThinStructures(f)));
+  ASSERT_EQ(s.thin_structures.size(), 2u);
+  const ThinStructure& shell = s.thin_structures[0];
+  EXPECT_EQ(shell.name, "membrane");
+  EXPECT_EQ(shell.type, "shell");
+  EXPECT_EQ(shell.mesh_path, fs::weakly_canonical(f.dir + "/meshes/membrane.obj").string());
+  EXPECT_EQ(shell.visual_mesh_path,
+            fs::weakly_canonical(f.dir + "/meshes/membrane_fine.obj").string());
+  EXPECT_TRUE(shell.centreline_path.empty());
+  EXPECT_EQ(shell.thickness_mm, 0.5);
+  // Material keys absent from the structure's own object come from the top-level material.
+  EXPECT_EQ(shell.material.youngs_modulus_pa, 20000);
+  EXPECT_EQ(shell.material.poisson_ratio, 0.49);
+  EXPECT_EQ(shell.fixed_vertices, (std::vector<int>{0, 7}));
+  EXPECT_EQ(shell.attach, "model");
+  EXPECT_EQ(shell.attach_distance_mm, 2.0);
+  EXPECT_EQ(shell.color, Eigen::Vector3d(0.9, 0.6, 0.5));
+  EXPECT_EQ(shell.opacity, 0.7);
+  const ThinStructure& vessel = s.thin_structures[1];
+  EXPECT_EQ(vessel.type, "vessel");
+  EXPECT_EQ(vessel.centreline_path, fs::weakly_canonical(f.dir + "/meshes/artery.obj").string());
+  EXPECT_EQ(vessel.radius_mm, 1.5);
+  EXPECT_EQ(vessel.material.youngs_modulus_pa, 3000);  // the top-level material
+  EXPECT_TRUE(vessel.fixed_vertices.empty());
+  EXPECT_EQ(vessel.attach, "none");
+  EXPECT_EQ(vessel.attach_distance_mm, 1.0);
+  EXPECT_EQ(vessel.opacity, 1.0);
+}
+
+TEST(Scene, ModelIsOptionalOnlyWithThinStructures) {
+  SceneFixture f("scene_thin_only");
+  json j = WithThinStructures(f);
+  j.erase("model");
+  Scene s = ReadScene(f.Write(j));
+  EXPECT_TRUE(s.model_mesh_path.empty());
+  EXPECT_EQ(s.thin_structures.size(), 2u);
+  // A placement without a mesh still places the thin structures.
+  j["model"] = json::parse(R"({"world_from_model": {"translation_mm": [0, 0, 50]}})");
+  s = ReadScene(f.Write(j));
+  EXPECT_TRUE(s.model_mesh_path.empty());
+  EXPECT_EQ(s.world_from_model.translation(), Eigen::Vector3d(0, 0, 50));
+  // Without thin structures (absent or empty) the model is required.
+  j.erase("model");
+  j["thin_structures"] = json::array();
+  std::string msg = ErrorMessage([&] { ReadScene(f.Write(j)); });
+  EXPECT_NE(msg.find("scene.json: model: required key is missing"), std::string::npos) << msg;
+  j = f.scene;
+  j["model"].erase("mesh");
+  msg = ErrorMessage([&] { ReadScene(f.Write(j)); });
+  EXPECT_NE(msg.find("model.mesh: required key is missing"), std::string::npos) << msg;
+}
+
+TEST(Scene, ThinStructureErrorsNameTheKeyPath) {
+  SceneFixture f("scene_thin_errors");
+  const json base = WithThinStructures(f);
+  struct Case {
+    std::string pointer;  // JSON pointer of the value to set
+    json value;           // null: erase the key
+    std::string expected;
+  };
+  const std::vector<Case> cases = {
+      {"/thin_structures/0/thikness_mm", 1, "thin_structures[0].thikness_mm: unknown key"},
+      {"/thin_structures/0/type", "membrane", "thin_structures[0].type"},
+      {"/thin_structures/0/thickness_mm", nullptr,
+       "thin_structures[0].thickness_mm: required key is missing"},
+      {"/thin_structures/0/thickness_mm", 0, "thin_structures[0].thickness_mm"},
+      {"/thin_structures/0/mesh", "meshes/none.obj",
+       "thin_structures[0].mesh: \"meshes/none.obj\""},
+      {"/thin_structures/0/radius_mm", 1, "thin_structures[0].radius_mm: not a key of a shell"},
+      {"/thin_structures/1/thickness_mm", 1,
+       "thin_structures[1].thickness_mm: not a key of a vessel"},
+      {"/thin_structures/1/radius_mm", -1, "thin_structures[1].radius_mm"},
+      {"/thin_structures/1/centreline", nullptr,
+       "thin_structures[1].centreline: required key is missing"},
+      {"/thin_structures/1/name", "tumour", "thin_structures[1].name: duplicate structure name"},
+      {"/thin_structures/1/name", "membrane", "thin_structures[1].name: duplicate structure name"},
+      {"/thin_structures/0/fixed_vertices", json::array({3, -1}),
+       "thin_structures[0].fixed_vertices: vertex indices must be >= 0"},
+      {"/thin_structures/0/fixed_vertices", json::array({3, 3}),
+       "thin_structures[0].fixed_vertices: vertex 3 is listed twice"},
+      {"/thin_structures/0/attach", "organ", "thin_structures[0].attach"},
+      {"/thin_structures/0/attach_distance_mm", -0.1, "thin_structures[0].attach_distance_mm"},
+      {"/thin_structures/0/color", json::array({255, 0, 0}), "thin_structures[0].color"},
+      {"/thin_structures/0/opacity", 2, "thin_structures[0].opacity"},
+      {"/thin_structures/0/material/poisson_ratio", 0.5,
+       "thin_structures[0].material.poisson_ratio: must be in (-1, 0.5)"},
+      {"/thin_structures/0/material/young", 1, "thin_structures[0].material.young: unknown key"},
+  };
+  for (const Case& c : cases) {
+    json j = base;
+    const json::json_pointer ptr(c.pointer);
+    if (c.value.is_null())
+      j[ptr.parent_pointer()].erase(ptr.back());
+    else
+      j[ptr] = c.value;
+    const std::string path = f.Write(j);
+    const std::string msg = ErrorMessage([&] { ReadScene(path); });
+    EXPECT_NE(msg.find("scene.json: " + c.expected), std::string::npos) << c.pointer << ": " << msg;
+    EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+  }
+}
+
+TEST(Scene, ThinStructuresRoundTrip) {
+  SceneFixture f("scene_thin_write");
+  for (const bool with_model : {true, false}) {
+    json j = WithThinStructures(f);
+    if (!with_model) j["model"].erase("mesh");
+    const Scene original = ReadScene(f.Write(j));
+    const std::string out = f.dir + "/written.json";
+    WriteScene(out, original);
+    EXPECT_EQ(ParseJsonFile(out)["thin_structures"][0]["mesh"], "meshes/membrane.obj");
+    const Scene s = ReadScene(out);
+    EXPECT_EQ(s.model_mesh_path, original.model_mesh_path);
+    EXPECT_TRUE(s.world_from_model.isApprox(original.world_from_model, 1e-14));
+    ASSERT_EQ(s.thin_structures.size(), original.thin_structures.size());
+    for (size_t i = 0; i < s.thin_structures.size(); ++i) {
+      const ThinStructure& a = original.thin_structures[i];
+      const ThinStructure& b = s.thin_structures[i];
+      EXPECT_EQ(b.name, a.name);
+      EXPECT_EQ(b.type, a.type);
+      EXPECT_EQ(b.mesh_path, a.mesh_path);
+      EXPECT_EQ(b.visual_mesh_path, a.visual_mesh_path);
+      EXPECT_EQ(b.centreline_path, a.centreline_path);
+      EXPECT_EQ(b.thickness_mm, a.thickness_mm);
+      EXPECT_EQ(b.radius_mm, a.radius_mm);
+      EXPECT_EQ(b.material.youngs_modulus_pa, a.material.youngs_modulus_pa);
+      EXPECT_EQ(b.material.poisson_ratio, a.material.poisson_ratio);
+      EXPECT_EQ(b.material.density_kg_m3, a.material.density_kg_m3);
+      EXPECT_EQ(b.material.rayleigh_mass_per_s, a.material.rayleigh_mass_per_s);
+      EXPECT_EQ(b.material.rayleigh_stiffness_s, a.material.rayleigh_stiffness_s);
+      EXPECT_EQ(b.fixed_vertices, a.fixed_vertices);
+      EXPECT_EQ(b.attach, a.attach);
+      EXPECT_EQ(b.attach_distance_mm, a.attach_distance_mm);
+      EXPECT_EQ(b.color, a.color);
+      EXPECT_EQ(b.opacity, a.opacity);
+    }
+  }
+  // WriteScene refuses a scene with neither a model nor a thin structure.
+  Scene empty = ReadScene(f.Write(f.scene));
+  empty.model_mesh_path.clear();
+  EXPECT_THROW(WriteScene(f.dir + "/empty.json", empty), Error);
+  EXPECT_FALSE(fs::exists(f.dir + "/empty.json"));
+}
+
 TEST(SceneOption, SetsTypedNestedValuesAndNamesBadAssignments) {
   Scene scene;
   SetSceneOption(&scene, "tracking.redetect_every_frames=5", "--set");
