@@ -250,11 +250,14 @@ struct VideoReader::Impl {
     ARREG_CHECK_INPUT(r >= 0, file, "", "cannot open video: ", AvErrorString(r));
     r = avformat_find_stream_info(format, nullptr);
     ARREG_CHECK_INPUT(r >= 0, file, "", "cannot read stream information: ", AvErrorString(r));
-    const AVCodec* codec = nullptr;
-    stream_index = av_find_best_stream(format, AVMEDIA_TYPE_VIDEO, -1, -1, &codec, 0);
-    ARREG_CHECK_INPUT(stream_index != AVERROR_STREAM_NOT_FOUND, file, "", "no video stream");
+    // The stream first, its decoder second: av_find_best_stream returns an error code, not a
+    // stream index, when the best stream has no decoder, so the codec could not be named.
+    stream_index = av_find_best_stream(format, AVMEDIA_TYPE_VIDEO, -1, -1, nullptr, 0);
+    ARREG_CHECK_INPUT(stream_index >= 0 && stream_index < static_cast<int>(format->nb_streams),
+                      file, "", "no video stream");
     AVStream* stream = format->streams[stream_index];
-    ARREG_CHECK_INPUT(stream_index >= 0 && codec != nullptr, file, "", "unsupported codec '",
+    const AVCodec* codec = avcodec_find_decoder(stream->codecpar->codec_id);
+    ARREG_CHECK_INPUT(codec != nullptr, file, "", "unsupported codec '",
                       avcodec_get_name(stream->codecpar->codec_id),
                       "' (no decoder in this FFmpeg build)");
     decoder = avcodec_alloc_context3(codec);
