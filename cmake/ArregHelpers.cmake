@@ -11,13 +11,21 @@ set(ARREG_ALLOWED_DEPS_ar "core;tracking;mechanics;cutting")
 
 function(arreg_set_common_options target)
   target_compile_options(${target} PRIVATE
-    $<$<CXX_COMPILER_ID:GNU,Clang>:-Wall -Wextra -Wpedantic -Wno-unused-parameter>)
+    $<$<CXX_COMPILER_ID:GNU,Clang>:-Wall -Wextra -Wpedantic -Wno-unused-parameter>
+    # error.h's ARREG_CHECK_INPUT uses the GNU ", ##__VA_ARGS__" that GCC accepts silently.
+    $<$<CXX_COMPILER_ID:Clang>:-Wno-gnu-zero-variadic-macro-arguments>)
   if(ARREG_NATIVE)
     target_compile_options(${target} PRIVATE -march=native)
   endif()
   if(ARREG_SANITIZE)
     target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-omit-frame-pointer
                                              -fno-sanitize-recover=undefined)
+    target_link_options(${target} PRIVATE -fsanitize=address,undefined)
+  endif()
+  if(ARREG_FUZZ)
+    # Coverage for libFuzzer in every arreg target; only the fuzz executables link the fuzzer's main.
+    target_compile_options(${target} PRIVATE -fsanitize=fuzzer-no-link,address,undefined
+                                             -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
     target_link_options(${target} PRIVATE -fsanitize=address,undefined)
   endif()
 endfunction()
