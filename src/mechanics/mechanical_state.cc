@@ -22,13 +22,15 @@ MechanicalState::MechanicalState(const TetMesh& mesh, const std::vector<Material
 
 void MechanicalState::Init(const TetMesh& mesh, const std::vector<Material>& materials) {
   const int nv = mesh.num_vertices(), nt = mesh.num_tetrahedra();
-  ARREG_CHECK_INPUT(nv > 0 && nt > 0, "", "mesh", "needs vertices and tetrahedra (got ", nv,
-                    " vertices, ", nt, " tetrahedra)");
+  // An empty state (no vertices, no tetrahedra) stands for the missing organ of a scene of
+  // thin structures only; otherwise both are needed.
+  ARREG_CHECK_INPUT((nv > 0 && nt > 0) || (nv == 0 && nt == 0), "", "mesh",
+                    "needs vertices and tetrahedra (got ", nv, " vertices, ", nt, " tetrahedra)");
   ARREG_CHECK_INPUT(materials.size() == 1 || static_cast<int>(materials.size()) == nt, "",
                     "materials", "expected 1 or ", nt, " materials, got ", materials.size());
   for (const Material& m : materials) m.Check();
-  ARREG_CHECK_INPUT(mesh.tetrahedra.minCoeff() >= 0 && mesh.tetrahedra.maxCoeff() < nv, "",
-                    "mesh.tetrahedra", "vertex index out of range [0, ", nv, ")");
+  ARREG_CHECK_INPUT(nt == 0 || (mesh.tetrahedra.minCoeff() >= 0 && mesh.tetrahedra.maxCoeff() < nv),
+                    "", "mesh.tetrahedra", "vertex index out of range [0, ", nv, ")");
   rest_positions_ = mesh.vertices;
   positions_ = mesh.vertices;
   velocities_ = RowMatX3d::Zero(nv, 3);

@@ -414,7 +414,8 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
       t.feature_embedding->Positions(after, state.tetrahedra(), &anchors);
       for (int idx : cutting::PointsWithinMargin(s, anchors, options_.spring_margin_mm)) {
         FeatureView& v = features[idx];
-        if (!v.spring_active) continue;
+        // Features on thin structures (no SpringEnergy spring) are re-anchored by their cut.
+        if (!v.spring_active || v.spring < 0) continue;
         t.springs->Remove(v.spring);
         v.spring_active = false;
         ++ev.springs_removed;

@@ -67,6 +67,10 @@ struct CutEvent {
   // rest configuration the line that was cut (its ends carried across the outline), in the
   // current one the frame-0 positions of the detector's points. Empty unless status is "cut".
   std::vector<Eigen::Vector3d> polyline_rest_mm;
+  // Thin structures the same cut separated (written only for scenes with thin structures).
+  bool thin = false;
+  int thin_shells_cut = 0, thin_shell_nodes_added = 0;
+  int thin_vessels_cut = 0, thin_vessel_frames_added = 0;
   nlohmann::json ToJson() const;
 };
 
@@ -111,6 +115,10 @@ struct FrameState {
   // Internal structures at their current positions (world), one per scene structure.
   const std::vector<SurfaceMesh>* internal = nullptr;
   const std::vector<std::string>* internal_names = nullptr;
+  // Thin structures at their current positions (world): a shell's visual surface (else its
+  // mid-surface), a vessel's tube; one per scene thin structure. nullptr when there are none.
+  const std::vector<SurfaceMesh>* thin = nullptr;
+  const std::vector<std::string>* thin_names = nullptr;
   FrameStats stats;
   StageTimes ms;
 };
@@ -122,6 +130,8 @@ struct RunStart {
   double fps = 0;
   int width = 0, height = 0;
   int model_vertices = 0, model_tetrahedra = 0;
+  int thin_shell_elements = 0, thin_nodes = 0;  // the generalised system (0 without thin)
+  int features_on_thin = 0;                     // of features_attached: on a shell
   int features_detected = 0, features_attached = 0;
   const SpringStiffness* springs = nullptr;  // the feature spring stiffness resolved at frame 0
   // The cut detector's options in use: radii resolved from the features at Initialize. Null

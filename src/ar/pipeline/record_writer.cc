@@ -54,9 +54,9 @@ nlohmann::json FrameRecord(const FrameState& f) {
 }
 
 void WriteInternalObj(const std::string& path, const std::vector<SurfaceMesh>& meshes,
-                      const std::vector<std::string>& names) {
+                      const std::vector<std::string>& names, const std::string& what) {
   WriteFileAtomic(path, [&](std::ostream& out) {
-    out << "# arreg run: internal structures\n";
+    out << "# arreg run: " << what << "\n";
     char line[128];
     int base = 1;
     for (size_t k = 0; k < meshes.size(); ++k) {
@@ -90,11 +90,12 @@ RecordWriter::~RecordWriter() {
 void RecordWriter::OnStart(const RunStart& start) {
   CreateDirectories(out_dir_);
   for (const char* sub : {"mesh", "surface", "internal"}) CreateDirectories(out_dir_ + "/" + sub);
+  const Scene& scene = *start.scene;
+  if (!scene.thin_structures.empty()) CreateDirectories(out_dir_ + "/thin");
   if (write_png_) CreateDirectories(out_dir_ + "/frames");
   jsonl_temporary_ = TemporaryPathFor(out_dir_ + "/frames.jsonl");
   jsonl_.open(jsonl_temporary_, std::ios::out | std::ios::trunc);
   ARREG_CHECK_INPUT(jsonl_.good(), out_dir_ + "/frames.jsonl", "", "cannot write");
-  const Scene& scene = *start.scene;
   run_ = nlohmann::json::object();
   run_["version"] = kVersion;
   run_["scene"] = scene.path;
@@ -109,6 +110,14 @@ void RecordWriter::OnStart(const RunStart& start) {
   }
   run_["model"] = {{"vertices", start.model_vertices}, {"tetrahedra", start.model_tetrahedra}};
   run_["features"] = {{"detected", start.features_detected}, {"attached", start.features_attached}};
+  if (!scene.thin_structures.empty()) {
+    nlohmann::json names = nlohmann::json::array();
+    for (const ThinStructure& t : scene.thin_structures) names.push_back(t.name);
+    run_["thin_structures"] = names;
+    run_["thin"] = {{"shell_elements", start.thin_shell_elements},
+                    {"nodes", start.thin_nodes},
+                    {"features_attached", start.features_on_thin}};
+  }
   run_["fps_video"] = start.fps;
 }
 
@@ -116,9 +125,12 @@ void RecordWriter::OnFrame(const FrameState& f) {
   jsonl_ << FrameRecord(f).dump() << '\n';
   ARREG_CHECK_INPUT(jsonl_.good(), out_dir_ + "/frames.jsonl", "", "write failed");
   if (f.save_meshes) {
-    TetMesh mesh = f.state->CurrentMesh();
-    if (f.positions) mesh.vertices = *f.positions;
-    WriteTetMesh(FramePath(out_dir_, "mesh", f.frame, ".vtk"), mesh);
+    // A scene of thin structures only has no tetrahedra (thin/ and surface/ hold it).
+    if (f.state->num_tetrahedra() > 0) {
+      TetMesh mesh = f.state->CurrentMesh();
+      if (f.positions) mesh.vertices = *f.positions;
+      WriteTetMesh(FramePath(out_dir_, "mesh", f.frame, ".vtk"), mesh);
+    }
     SurfaceMesh surface;
     surface.vertices = f.surface->vertices;
     surface.faces = f.surface->faces;
@@ -127,6 +139,9 @@ void RecordWriter::OnFrame(const FrameState& f) {
     if (f.internal && !f.internal->empty())
       WriteInternalObj(FramePath(out_dir_, "internal", f.frame, ".obj"), *f.internal,
                        *f.internal_names);
+    if (f.thin && !f.thin->empty())
+      WriteInternalObj(FramePath(out_dir_, "thin", f.frame, ".obj"), *f.thin, *f.thin_names,
+                       "thin structures");
   }
   if (write_png_ && f.overlay && !f.overlay->empty()) {
     const std::string path = FramePath(out_dir_, "frames", f.frame, ".png");

@@ -50,19 +50,26 @@ nlohmann::json StageTimes::ToJson() const {
 nlohmann::json CutEvent::ToJson() const {
   nlohmann::json polyline = nlohmann::json::array();
   for (const Eigen::Vector3d& p : polyline_rest_mm) polyline.push_back({p.x(), p.y(), p.z()});
-  return {{"frame", frame},
-          {"status", status},
-          {"message", message},
-          {"polyline_points", polyline_points},
-          {"new_tetrahedra", new_tetrahedra},
-          {"new_vertices", new_vertices},
-          {"springs_removed", springs_removed},
-          {"internal_triangles_removed", internal_triangles_removed},
-          {"internal_cap_faces", internal_cap_faces},
-          {"depth_fraction", depth_fraction},
-          {"configuration", configuration},
-          {"welded_vertices", welded_vertices},
-          {"polyline_rest_mm", polyline}};
+  nlohmann::json j = {{"frame", frame},
+                      {"status", status},
+                      {"message", message},
+                      {"polyline_points", polyline_points},
+                      {"new_tetrahedra", new_tetrahedra},
+                      {"new_vertices", new_vertices},
+                      {"springs_removed", springs_removed},
+                      {"internal_triangles_removed", internal_triangles_removed},
+                      {"internal_cap_faces", internal_cap_faces},
+                      {"depth_fraction", depth_fraction},
+                      {"configuration", configuration},
+                      {"welded_vertices", welded_vertices},
+                      {"polyline_rest_mm", polyline}};
+  if (thin) {
+    j["thin_shells_cut"] = thin_shells_cut;
+    j["thin_shell_nodes_added"] = thin_shell_nodes_added;
+    j["thin_vessels_cut"] = thin_vessels_cut;
+    j["thin_vessel_frames_added"] = thin_vessel_frames_added;
+  }
+  return j;
 }
 
 namespace {
@@ -127,13 +134,39 @@ cutting::CutDetectorOptions WithPixelFloor(const CuttingStageOptions& o,
   return d;
 }
 
+// One mesh of several (vertices stacked, faces renumbered).
+SurfaceMesh MergeSurfaces(const std::vector<SurfaceMesh>& parts) {
+  SurfaceMesh out;
+  int nv = 0, nf = 0;
+  for (const SurfaceMesh& m : parts) nv += m.num_vertices(), nf += m.num_faces();
+  out.vertices.resize(nv, 3);
+  out.faces.resize(nf, 3);
+  nv = nf = 0;
+  for (const SurfaceMesh& m : parts) {
+    out.vertices.middleRows(nv, m.num_vertices()) = m.vertices;
+    out.faces.middleRows(nf, m.num_faces()) = m.faces.array() + nv;
+    nv += m.num_vertices();
+    nf += m.num_faces();
+  }
+  return out;
+}
+
 }  // namespace
 
 LoadedModel LoadSceneModel(const Scene& scene) {
   LoadedModel model;
-  model.mesh = ReadTetMesh(scene.model_mesh_path);
-  model.mesh.vertices = Transform(model.mesh.vertices, scene.mm_per_unit, scene.world_from_model);
-  FixOrientation(&model.mesh);
+  if (!scene.model_mesh_path.empty()) {
+    model.mesh = ReadTetMesh(scene.model_mesh_path);
+    model.mesh.vertices = Transform(model.mesh.vertices, scene.mm_per_unit, scene.world_from_model);
+    FixOrientation(&model.mesh);
+  } else {
+    // A scene of thin structures only (ParseScene allows it only then).
+    model.mesh.vertices.resize(0, 3);
+    model.mesh.tetrahedra.resize(0, 4);
+    ARREG_CHECK_INPUT(scene.internal_structures.empty(), scene.path, "internal_structures",
+                      "internal structures are embedded in the model, and the scene has none");
+  }
+  model.thin = LoadThinStructures(scene);
   for (const InternalStructure& s : scene.internal_structures) {
     SurfaceMesh mesh = ReadSurfaceMesh(s.mesh_path);
     mesh.vertices = Transform(mesh.vertices, scene.mm_per_unit, scene.world_from_model);
@@ -273,8 +306,26 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
                                                : mechanics::LinearSolverType::kCholmodPcg;
   io.line_search = o.mechanics.line_search;
   mechanics::ImplicitEulerIntegrator integrator(io);
+  // Thin structures: the organ, shells, vessels and all springs in one generalised system.
+  const bool has_tets = state.num_tetrahedra() > 0;
+  std::optional<ThinSystem> thin;
+  if (!impl_->model.thin.empty()) {
+    ThinSystemOptions to;
+    to.integrator.dt_s = io.dt_s;
+    to.integrator.substeps = io.substeps;
+    to.integrator.newton_mode = io.newton_mode;
+    to.integrator.max_newton_iterations = io.max_newton_iterations;
+    to.integrator.newton_tolerance_mm = io.newton_tolerance_mm;
+    to.integrator.rayleigh_mass_alpha = io.rayleigh_mass_alpha;
+    to.integrator.rayleigh_stiffness_beta = io.rayleigh_stiffness_beta;
+    to.integrator.linear_solver = io.linear_solver;
+    to.integrator.line_search = io.line_search;
+    to.elastic = elastic_options;
+    to.gravity_mm_per_s2 = o.mechanics.gravity_mm_per_s2;
+    thin.emplace(impl_->model.thin, scene, &state, &springs, to);
+  }
   std::optional<mechanics::QuasiStaticFit> output_fit;
-  if (o.mechanics.output_spring_factor > 0) {
+  if (o.mechanics.output_spring_factor > 0 && has_tets) {
     mechanics::QuasiStaticFitOptions fo;
     fo.spring_factor = o.mechanics.output_spring_factor;
     fo.elastic = elastic_options;
@@ -291,6 +342,26 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     return r;
   }();
   std::vector<mechanics::EmbeddedPoints> internal_embedding;
+  // The surface features are lifted onto: the organ's boundary, and with thin structures the
+  // shells' frame-0 mid-surfaces after it (vertices: the organ's, then ThinSystem's lift
+  // vertices). `lifted` is what lifting and the tracking region use.
+  const int organ_vertices = impl_->model.mesh.num_vertices();
+  const int organ_faces0 = surface.num_faces();
+  SurfaceMesh lift_surface;
+  const auto lift_vertices = [&] {
+    RowMatX3d v(organ_vertices + (thin ? thin->num_lift_vertices() : 0), 3);
+    v.topRows(organ_vertices) = state.positions().topRows(organ_vertices);
+    if (thin) v.bottomRows(thin->num_lift_vertices()) = thin->LiftVertices();
+    return v;
+  };
+  if (thin) {
+    lift_surface.vertices = lift_vertices();
+    lift_surface.faces.resize(organ_faces0 + thin->lift_triangles().rows(), 3);
+    lift_surface.faces.topRows(organ_faces0) = surface.faces;
+    lift_surface.faces.bottomRows(thin->lift_triangles().rows()) =
+        thin->lift_triangles().array() + organ_vertices;
+  }
+  const SurfaceMesh& lifted = thin ? lift_surface : surface;
   for (const SurfaceMesh& m : internal)
     internal_embedding.push_back(
         mechanics::EmbeddedPoints::Embed(m.vertices, state.rest_positions(), state.tetrahedra()));
@@ -305,7 +376,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
 
   t0 = now();
   FeatureTracker tracker(o.tracking);
-  cv::Mat roi = render::RenderMask(raster, surface.vertices, surface.faces);
+  cv::Mat roi = render::RenderMask(raster, lifted.vertices, lifted.faces);
   tracker.Initialize(bgr, roi);
   std::vector<FeatureView> features;
   std::unordered_map<int, int> row_of_id;
@@ -326,14 +397,29 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   t0 = now();
   lift::FeatureLifter lifter(o.lifting);
   const std::vector<lift::FeatureAttachment> attachments =
-      lifter.Attach(camera, pixels, &surface, std::nullopt);
+      lifter.Attach(camera, pixels, &lifted, std::nullopt);
   ms.lift = since(t0);
 
   t0 = now();
   RowMatX3d attach_points(nf, 3);
   for (int r = 0; r < nf; ++r) attach_points.row(r) = attachments[r].point_mm.transpose();
-  mechanics::EmbeddedPoints feature_embedding =
-      mechanics::EmbeddedPoints::Embed(attach_points, state.rest_positions(), state.tetrahedra());
+  mechanics::EmbeddedPoints feature_embedding;
+  if (has_tets)
+    feature_embedding =
+        mechanics::EmbeddedPoints::Embed(attach_points, state.rest_positions(), state.tetrahedra());
+  else
+    feature_embedding.Resize(nf);
+  // Per feature row: its ThinSystem spring when it sits on a shell, else -1.
+  std::vector<int> thin_spring(nf, -1);
+  const auto on_shell = [&](const lift::FeatureAttachment& a) {
+    return thin && a.attached && a.face >= organ_faces0;
+  };
+  // Anchors of every feature row: embedded in the tetrahedra, or on a shell's surface.
+  const auto update_anchors = [&](RowMatX3d* anchors) {
+    if (has_tets) feature_embedding.Positions(state.positions(), state.tetrahedra(), anchors);
+    for (size_t r = 0; r < thin_spring.size(); ++r)
+      if (thin_spring[r] >= 0) anchors->row(r) = thin->FeatureAnchor(thin_spring[r]).transpose();
+  };
   int attached = 0;
   for (const lift::FeatureAttachment& a : attachments) attached += a.attached ? 1 : 0;
   const double feature_spacing_mm = [&] {
@@ -342,14 +428,32 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       if (attachments[r].attached) p.row(k++) = attach_points.row(r);
     return cutting::MedianKthNeighbourDistance(p, 1);
   }();
-  const SpringStiffness stiffness = ResolveSpringStiffness(
-      o.mechanics, scene.material.youngs_modulus_pa, TetVolumes(impl_->model.mesh).sum(),
-      AreaFacing(surface, camera.CenterInWorld()), attached);
+  // With thin structures the stiffness scale E V / A sums the organ and the shells (a sheet's
+  // volume is area x thickness, its whole area is seen from one side; E volume-weighted).
+  const double organ_volume = has_tets ? TetVolumes(impl_->model.mesh).sum() : 0.0;
+  const double thin_volume = thin ? thin->ShellVolume() : 0.0;
+  const double modulus = thin ? (scene.material.youngs_modulus_pa * organ_volume +
+                                 thin->ShellMeanModulusPa() * thin_volume) /
+                                    std::max(organ_volume + thin_volume, 1e-300)
+                              : scene.material.youngs_modulus_pa;
+  const SpringStiffness stiffness =
+      ResolveSpringStiffness(o.mechanics, modulus, organ_volume + thin_volume,
+                             (has_tets ? AreaFacing(surface, camera.CenterInWorld()) : 0.0) +
+                                 (thin ? thin->ShellArea() : 0.0),
+                             attached);
+  int on_thin = 0;
   for (int r = 0; r < nf; ++r) {
     FeatureView& v = features[r];
     v.lift_status = lifter.status()[r];
     if (!attachments[r].attached) continue;
-    v.spring = springs.Add(feature_embedding[r], attachments[r].point_mm, stiffness.n_per_m);
+    if (on_shell(attachments[r])) {
+      thin_spring[r] =
+          thin->AddFeatureSpring(attachments[r].face - organ_faces0, attachments[r].point_mm,
+                                 attachments[r].point_mm, stiffness.n_per_m);
+      ++on_thin;
+    } else {
+      v.spring = springs.Add(feature_embedding[r], attachments[r].point_mm, stiffness.n_per_m);
+    }
     v.alive = v.spring_active = true;
   }
   ms.mechanics = since(t0);
@@ -372,10 +476,10 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     detector->Initialize(p0, ids);
     CuttingStageOptions co = o.cutting;
     co.foresight_mm = co.first_event_foresight ? detector->options().neighbour_radius_mm : 0.0;
-    cut_handler.emplace(co, state);
+    if (has_tets) cut_handler.emplace(co, state);
     // A segment whose cut keep_connected would reject at every depth is no growth
     // (CuttingStageOptions::refuse_splitting_segments).
-    if (co.keep_connected && co.refuse_splitting_segments)
+    if (cut_handler && co.keep_connected && co.refuse_splitting_segments)
       detector->SetSegmentCheck([&](const std::vector<Eigen::Vector3d>& extended_mm,
                                     const std::vector<Eigen::Vector3d>& extended_initial_mm) {
         return !cut_handler->SplitsTheModel(extended_mm, extended_initial_mm,
@@ -406,6 +510,11 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   start.height = camera.height;
   start.model_vertices = state.num_vertices();
   start.model_tetrahedra = state.num_tetrahedra();
+  if (thin) {
+    start.thin_shell_elements = thin->num_shell_elements();
+    start.thin_nodes = thin->state().num_nodes();
+    start.features_on_thin = on_thin;
+  }
   start.features_detected = nf;
   start.features_attached = attached;
   start.springs = &stiffness;
@@ -423,6 +532,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   cv::Mat overlay_image;
   const auto run_start = std::chrono::steady_clock::now();
   RowMatX3d frame0_surface_vertices;
+  std::vector<SurfaceMesh> thin_surfaces;
 
   for (int frame = 0; frame < num_frames; ++frame) {
     events.clear();
@@ -437,7 +547,10 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       t0 = now();
       cv::Mat frame_roi;
       if (o.roi_dilation_px >= 0) {
-        frame_roi = render::RenderMask(raster, state.positions(), surface.faces);
+        if (thin)
+          frame_roi = render::RenderMask(raster, lift_vertices(), lift_surface.faces);
+        else
+          frame_roi = render::RenderMask(raster, state.positions(), surface.faces);
         if (o.roi_dilation_px > 0)
           cv::dilate(
               frame_roi, frame_roi,
@@ -477,7 +590,8 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
         RowMatX2d new_pixels(added, 2);
         for (int k = 0; k < added; ++k)
           new_pixels.row(k) << detected[k]->position_px.x, detected[k]->position_px.y;
-        frame0_surface_vertices = state.positions().topRows(impl_->model.mesh.vertices.rows());
+        frame0_surface_vertices =
+            thin ? lift_vertices() : RowMatX3d(state.positions().topRows(organ_vertices));
         const std::vector<lift::FeatureAttachment> more = lifter.AttachMore(
             lift::RaysThroughPixels(camera, new_pixels), &frame0_surface_vertices);
         RowMatX3d points(added, 3);
@@ -485,9 +599,14 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
         const std::vector<char> trusted =
             ModelAgrees(points, anchors, targets, features, 3.0 * feature_spacing_mm,
                         o.attach_max_misfit_factor);
-        const mechanics::EmbeddedPoints current =
-            mechanics::EmbeddedPoints::Embed(points, state.positions(), state.tetrahedra());
-        const RowMatX3d rest = current.Positions(state.rest_positions(), state.tetrahedra());
+        mechanics::EmbeddedPoints current;
+        RowMatX3d rest = points;
+        if (has_tets) {
+          current = mechanics::EmbeddedPoints::Embed(points, state.positions(), state.tetrahedra());
+          rest = current.Positions(state.rest_positions(), state.tetrahedra());
+        } else {
+          current.Resize(added);
+        }
         pixels.conservativeResize(nf + added, 2);
         attach_points.conservativeResize(nf + added, 3);
         anchors.conservativeResize(nf + added, 3);
@@ -495,6 +614,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
         tracked.resize(nf + added, 1);
         alive_rows.resize(nf + added, 0);
         feature_embedding.Resize(nf + added);
+        thin_spring.resize(nf + added, -1);
         std::vector<int> joining;
         for (int k = 0; k < added; ++k) {
           const int r = nf + k;
@@ -509,7 +629,14 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
           targets.row(r) = points.row(k);
           feature_embedding[r] = current[k];
           row_of_id[v.id] = r;
-          if (more[k].attached && trusted[k]) {
+          if (more[k].attached && trusted[k] && on_shell(more[k])) {
+            thin_spring[r] = thin->AddFeatureSpring(more[k].face - organ_faces0, more[k].point_mm,
+                                                    more[k].point_mm, stiffness.n_per_m);
+            attach_points.row(r) = thin->FeatureRestAnchor(thin_spring[r]).transpose();
+            v.alive = v.spring_active = true;
+            joining.push_back(r);
+            ++stats.added;
+          } else if (more[k].attached && trusted[k] && has_tets) {
             v.spring = springs.Add(current[k], more[k].point_mm, stiffness.n_per_m);
             v.alive = v.spring_active = true;
             joining.push_back(r);
@@ -532,7 +659,8 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       const RowMatX3d* cast_surface = nullptr;
       if (o.lifting.surface_update == lift::SurfaceUpdate::kRayCastWithFallback) {
         // The frame-0 boundary's vertices keep their indices through cuts (cuts only add).
-        frame0_surface_vertices = state.positions().topRows(impl_->model.mesh.vertices.rows());
+        frame0_surface_vertices =
+            thin ? lift_vertices() : RowMatX3d(state.positions().topRows(organ_vertices));
         cast_surface = &frame0_surface_vertices;
       }
       lifter.Update(camera, pixels, tracked, cast_surface);
@@ -546,25 +674,39 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
         v.lift_status = lifter.status()[r];
         if (!v.spring_active) continue;
         if (!tracked[r]) {
-          springs.Remove(v.spring);
+          if (thin_spring[r] >= 0)
+            thin->RemoveFeatureSpring(thin_spring[r]);
+          else
+            springs.Remove(v.spring);
           v.spring_active = false;
           continue;
         }
-        springs.SetTarget(v.spring, targets.row(r).transpose());
+        if (thin_spring[r] >= 0)
+          thin->SetFeatureTarget(thin_spring[r], targets.row(r).transpose());
+        else
+          springs.SetTarget(v.spring, targets.row(r).transpose());
       }
-      const mechanics::StepSummary step = integrator.Step(&state, &elastic, terms);
+      if (thin) {
+        const mechanics::GeneralisedSummary step = thin->Step(&state);
+        stats.mechanics_status = mechanics::StepStatusName(step.status);
+        stats.linear_iterations = step.linear_iterations;
+        stats.factorizations = step.factorizations;
+        stats.line_search_cuts = step.line_search_cuts;
+      } else {
+        const mechanics::StepSummary step = integrator.Step(&state, &elastic, terms);
+        stats.mechanics_status = mechanics::StepStatusName(step.status);
+        stats.inverted_elements = step.inverted_elements;
+        stats.linear_iterations = step.linear_iterations;
+        stats.factorizations = step.factorizations;
+        stats.line_search_cuts = step.line_search_cuts;
+      }
       if (cut_handler) cut_handler->FollowWelds(&state);
-      stats.mechanics_status = mechanics::StepStatusName(step.status);
-      stats.inverted_elements = step.inverted_elements;
-      stats.linear_iterations = step.linear_iterations;
-      stats.factorizations = step.factorizations;
-      stats.line_search_cuts = step.line_search_cuts;
       ms.mechanics = since(t0);
     } else {
       stats.mechanics_status = mechanics::StepStatusName(mechanics::StepStatus::kConverged);
     }
     t0 = now();
-    feature_embedding.Positions(state.positions(), state.tetrahedra(), &anchors);
+    update_anchors(&anchors);
     ms.mechanics += since(t0);
 
     // Cutting.
@@ -582,15 +724,39 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       detector->Update(ff, &detection);
       if (detection.segment_added && detection.extended_polyline_mm.size() >= 2) {
         SurfaceMesh s;
-        const CutEvent ev = cut_handler->Apply(frame, detection.extended_polyline_mm,
-                                               detector->ExtendedPolyline(true),
-                                               camera.CenterInWorld(), cut_targets, &s);
+        const std::vector<Eigen::Vector3d> rest_polyline = detector->ExtendedPolyline(true);
+        CutEvent ev;
+        ev.frame = frame;
+        ev.status = "no-crossing";
+        ev.polyline_points = static_cast<int>(detection.extended_polyline_mm.size());
+        if (cut_handler)
+          ev = cut_handler->Apply(frame, detection.extended_polyline_mm, rest_polyline,
+                                  camera.CenterInWorld(), cut_targets, &s);
+        if (thin && ev.status != "failed") {
+          // The shells along the rest polyline, seen from the camera; the vessels by the plane
+          // of the current polyline and the viewing direction.
+          Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+          for (const Eigen::Vector3d& p : rest_polyline) centre += p;
+          centre /= static_cast<double>(std::max<size_t>(rest_polyline.size(), 1));
+          const ThinCutEvent te = thin->Cut(rest_polyline, detection.extended_polyline_mm,
+                                            centre - camera.CenterInWorld());
+          ev.thin = true;
+          ev.thin_shells_cut = te.shells_cut;
+          ev.thin_shell_nodes_added = te.shell_nodes_added;
+          ev.thin_vessels_cut = te.vessels_cut;
+          ev.thin_vessel_frames_added = te.vessel_frames_added;
+          if (te.shells_cut + te.vessels_cut > 0 && ev.status != "cut") {
+            ev.status = "cut";
+            ev.message.clear();
+            ev.polyline_rest_mm = rest_polyline;
+          }
+        }
         if (ev.status == "cut") {
-          feature_embedding.Positions(state.positions(), state.tetrahedra(), &anchors);
-          surface = ExtractBoundary(state.CurrentMesh());
+          if (has_tets) surface = ExtractBoundary(state.CurrentMesh());
+          update_anchors(&anchors);
           ++summary.cuts_applied;
         }
-        if (ev.status != "failed") cut_surface = std::move(s);
+        if (ev.status != "failed" && (cut_handler || s.num_faces() > 0)) cut_surface = std::move(s);
         events.push_back(ev);
         ++summary.cut_events;
       }
@@ -607,6 +773,12 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       shown = &output_fit->positions();
     }
     surface.vertices = *shown;
+    if (thin) {
+      thin_surfaces = thin->Surfaces();
+      // Without an organ the structures are what is registered: surface/ and the overlay's
+      // contour show the shells and vessels together.
+      if (!has_tets) surface = MergeSurfaces(thin_surfaces);
+    }
     for (size_t k = 0; k < internal.size(); ++k)
       internal_embedding[k].Positions(*shown, state.tetrahedra(), &internal[k].vertices);
     double sum = 0;
@@ -632,6 +804,10 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
         layers_internal.push_back(
             {&internal[k].vertices, &internal[k].faces, impl_->model.internal_colors[k],
              impl_->model.internal_opacity[k], impl_->model.internal_names[k]});
+      if (thin && has_tets)
+        for (size_t k = 0; k < thin_surfaces.size(); ++k)
+          layers_internal.push_back({&thin_surfaces[k].vertices, &thin_surfaces[k].faces,
+                                     thin->colors()[k], thin->opacities()[k], thin->names()[k]});
       OverlayLayers layers;
       layers.feature_pixels = &pixels;
       layers.targets_mm = &targets;
@@ -669,6 +845,10 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     fs.surface = &surface;
     fs.internal = &internal;
     fs.internal_names = &impl_->model.internal_names;
+    if (thin) {
+      fs.thin = &thin_surfaces;
+      fs.thin_names = &thin->names();
+    }
     fs.stats = stats;
     fs.ms = ms;
     t0 = now();

@@ -9,19 +9,21 @@
 
 #include "ar/pipeline/frame_observer.h"
 #include "ar/pipeline/pipeline_options.h"
+#include "ar/pipeline/thin_model.h"
 #include "core/scene.h"
 
 namespace arreg::pipeline {
 
 // The model as loaded for frame 0: world frame, millimetres.
 struct LoadedModel {
-  TetMesh mesh;                             // scaled by mm_per_unit, world_from_model applied
+  TetMesh mesh;  // scaled by mm_per_unit, world_from_model applied; empty without a model
   std::vector<SurfaceMesh> internal;        // the same transform
   std::vector<std::string> internal_names;  // scene names
   std::vector<Eigen::Vector3d> internal_colors;
   std::vector<double> internal_opacity;
+  std::vector<LoadedThin> thin;  // the scene's thin structures, the same transform
 };
-// Reads the scene's model and internal structures; throws arreg::Error naming the file.
+// Reads the scene's model, internal and thin structures; throws arreg::Error naming the file.
 LoadedModel LoadSceneModel(const Scene& scene);
 
 struct RunOptions {
