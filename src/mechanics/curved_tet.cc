@@ -14,13 +14,11 @@ namespace arreg::mechanics {
 
 namespace {
 
-// L^j for j = 0..degree, per coordinate.
-Eigen::Matrix<double, 4, 4> Powers(int degree, const Eigen::Vector4d& L) {
-  Eigen::Matrix<double, 4, 4> p;
-  for (int i = 0; i < 4; ++i) {
-    p(i, 0) = 1.0;
-    for (int j = 1; j <= std::min(degree, 3); ++j) p(i, j) = p(i, j - 1) * L[i];
-  }
+// L_i^j for j = 0..degree, per coordinate i (4 x (degree + 1)).
+Eigen::Matrix<double, 4, Eigen::Dynamic> Powers(int degree, const Eigen::Vector4d& L) {
+  Eigen::Matrix<double, 4, Eigen::Dynamic> p(4, degree + 1);
+  p.col(0).setOnes();
+  for (int j = 1; j <= degree; ++j) p.col(j) = p.col(j - 1).cwiseProduct(L);
   return p;
 }
 
@@ -28,6 +26,41 @@ double Factorial(int n) {
   double f = 1.0;
   for (int i = 2; i <= n; ++i) f *= i;
   return f;
+}
+
+// Per degree 0 .. kMaxDegree: the multi-indices, their multinomial coefficients and,
+// for degree >= 1, the index of alpha - e_i among the indices of degree - 1 (-1 when
+// alpha_i = 0). Built once: evaluation runs per point per element.
+constexpr int kMaxDegree = 12;
+struct BernsteinTable {
+  std::vector<std::array<int, 4>> indices;
+  std::vector<double> multinomial;
+  std::vector<std::array<int, 4>> lowered;
+};
+const BernsteinTable& TableOf(int degree) {
+  static const std::vector<BernsteinTable> tables = [] {
+    std::vector<BernsteinTable> out(kMaxDegree + 1);
+    for (int d = 0; d <= kMaxDegree; ++d) {
+      out[d].indices = BernsteinIndices(d);
+      for (const std::array<int, 4>& alpha : out[d].indices) {
+        double m = Factorial(d);
+        for (int a : alpha) m /= Factorial(a);
+        out[d].multinomial.push_back(m);
+        std::array<int, 4> lowered = {-1, -1, -1, -1};
+        for (int i = 0; i < 4 && d > 0; ++i) {
+          if (alpha[i] == 0) continue;
+          std::array<int, 4> beta = alpha;
+          --beta[i];
+          const auto& lower = out[d - 1].indices;
+          lowered[i] =
+              static_cast<int>(std::find(lower.begin(), lower.end(), beta) - lower.begin());
+        }
+        out[d].lowered.push_back(lowered);
+      }
+    }
+    return out;
+  }();
+  return tables[degree];
 }
 
 double Diagonal(const Eigen::MatrixX3d& control) {
@@ -54,17 +87,45 @@ const Eigen::MatrixXd& InverseCollocation(int degree) {
   return inverses[degree];
 }
 
+// Lattice points alpha / d (rows) and the inverse collocation matrix of degree d in
+// {1, 3, 6}, the degrees of the Jacobian determinant of elements of degree 1, 2, 3.
+struct DeterminantBasis {
+  std::vector<Eigen::Vector4d> points;
+  Eigen::MatrixXd inverse;
+};
+const DeterminantBasis& DeterminantBasisOf(int element_degree) {
+  static const std::array<DeterminantBasis, 4> bases = [] {
+    std::array<DeterminantBasis, 4> out;
+    for (int k = 1; k <= 3; ++k) {
+      const int d = std::max(3 * (k - 1), 1);
+      const std::vector<std::array<int, 4>> indices = BernsteinIndices(d);
+      const int n = static_cast<int>(indices.size());
+      Eigen::MatrixXd v(n, n);
+      for (int a = 0; a < n; ++a) {
+        const Eigen::Vector4d L =
+            Eigen::Vector4d(indices[a][0], indices[a][1], indices[a][2], indices[a][3]) / d;
+        out[k].points.push_back(L);
+        v.row(a) = BernsteinValues(d, L).transpose();
+      }
+      out[k].inverse = v.fullPivLu().inverse();
+    }
+    return out;
+  }();
+  return bases[element_degree];
+}
+
 }  // namespace
 
 Eigen::VectorXd BernsteinValues(int degree, const Eigen::Vector4d& L) {
-  ARREG_CHECK_INPUT(degree >= 0 && degree <= 3, "", "degree", "must be 0 .. 3, got ", degree);
-  const std::vector<std::array<int, 4>> indices = BernsteinIndices(degree);
-  const Eigen::Matrix<double, 4, 4> p = Powers(degree, L);
-  Eigen::VectorXd out(static_cast<int>(indices.size()));
-  for (size_t a = 0; a < indices.size(); ++a) {
-    double v = Factorial(degree);
-    for (int i = 0; i < 4; ++i) v *= p(i, indices[a][i]) / Factorial(indices[a][i]);
-    out[static_cast<int>(a)] = v;
+  ARREG_CHECK_INPUT(degree >= 0 && degree <= kMaxDegree, "", "degree", "must be 0 .. ", kMaxDegree,
+                    ", got ", degree);
+  const BernsteinTable& table = TableOf(degree);
+  const Eigen::Matrix<double, 4, Eigen::Dynamic> p = Powers(degree, L);
+  Eigen::VectorXd out(static_cast<int>(table.indices.size()));
+  for (size_t a = 0; a < table.indices.size(); ++a) {
+    const std::array<int, 4>& alpha = table.indices[a];
+    out[static_cast<int>(a)] =
+        table.multinomial[a] * p(0, alpha[0]) * p(1, alpha[1]) * p(2, alpha[2]) * p(3, alpha[3]);
   }
   return out;
 }
@@ -84,23 +145,31 @@ Eigen::Vector3d BezierTetPoint(int degree, const Eigen::MatrixX3d& control,
 
 Eigen::Matrix3d BezierTetJacobian(int degree, const Eigen::MatrixX3d& control,
                                   const Eigen::Vector4d& L) {
-  const std::vector<std::array<int, 4>> indices = BernsteinIndices(degree);
+  ARREG_CHECK_INPUT(degree >= 1 && degree <= kMaxDegree, "", "degree", "must be 1 .. ", kMaxDegree,
+                    ", got ", degree);
+  const BernsteinTable& table = TableOf(degree);
   const Eigen::VectorXd lower = BernsteinValues(degree - 1, L);
-  const std::vector<std::array<int, 4>> lower_indices = BernsteinIndices(degree - 1);
   // dx/dL_i = k sum_{alpha_i > 0} B^{k-1}_{alpha - e_i} P_alpha
   Eigen::Matrix<double, 3, 4> dx_dl = Eigen::Matrix<double, 3, 4>::Zero();
-  for (size_t a = 0; a < indices.size(); ++a) {
-    for (int i = 0; i < 4; ++i) {
-      if (indices[a][i] == 0) continue;
-      std::array<int, 4> beta = indices[a];
-      --beta[i];
-      const auto it = std::find(lower_indices.begin(), lower_indices.end(), beta);
-      dx_dl.col(i) += degree * lower[it - lower_indices.begin()] * control.row(a).transpose();
-    }
-  }
+  for (size_t a = 0; a < table.indices.size(); ++a)
+    for (int i = 0; i < 4; ++i)
+      if (table.lowered[a][i] >= 0)
+        dx_dl.col(i) += degree * lower[table.lowered[a][i]] * control.row(a).transpose();
   Eigen::Matrix3d j;
   for (int c = 0; c < 3; ++c) j.col(c) = dx_dl.col(c + 1) - dx_dl.col(0);
   return j;
+}
+
+JacobianBounds BezierTetJacobianBounds(int degree, const Eigen::MatrixX3d& control) {
+  ARREG_CHECK_INPUT(degree >= 1 && degree <= 3, "", "degree", "must be 1, 2 or 3, got ", degree);
+  const DeterminantBasis& basis = DeterminantBasisOf(degree);
+  Eigen::VectorXd values(static_cast<int>(basis.points.size()));
+  for (size_t a = 0; a < basis.points.size(); ++a)
+    values[static_cast<int>(a)] = BezierTetJacobian(degree, control, basis.points[a]).determinant();
+  JacobianBounds out;
+  out.min_sampled = values.minCoeff();
+  out.min_coefficient = (basis.inverse * values).minCoeff();
+  return out;
 }
 
 RowMatX3d InterpolateMap(const HighOrderTetMesh& mesh, const RowMatX3d& nodes,

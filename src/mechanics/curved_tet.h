@@ -18,7 +18,8 @@
 namespace arreg::mechanics {
 
 // B_alpha(L) for every alpha of BernsteinIndices(degree), in that order
-// (BernsteinCount(degree)); they sum to one when L does.
+// (BernsteinCount(degree)); they sum to one when L does. Any degree 0 .. 12 (the
+// Jacobian determinant of a degree-k element has degree 3(k - 1)).
 Eigen::VectorXd BernsteinValues(int degree, const Eigen::Vector4d& L);
 
 // Control points of element e (BernsteinCount x 3, mm) gathered from the node
@@ -32,6 +33,18 @@ Eigen::Vector3d BezierTetPoint(int degree, const Eigen::MatrixX3d& control,
 // B^{k-1}_{alpha - e_i}(L) P_alpha.
 Eigen::Matrix3d BezierTetJacobian(int degree, const Eigen::MatrixX3d& control,
                                   const Eigen::Vector4d& L);
+
+// The Jacobian determinant of an element of degree k is a polynomial of degree
+// d = 3(k - 1) in L; its Bernstein coefficients (from its values at the d-lattice
+// points) bound it from below over the whole element (Bernstein polynomials are
+// non-negative and sum to one). min_coefficient > 0 certifies that the element is not
+// inverted anywhere; min_sampled < 0 proves that it is; in between it is undecided
+// (a subdivision would decide, not done here).
+struct JacobianBounds {
+  double min_sampled = 0;      // min det J over the lattice points of degree max(d, 1) (mm^3)
+  double min_coefficient = 0;  // min Bernstein coefficient of det J (mm^3)
+};
+JacobianBounds BezierTetJacobianBounds(int degree, const Eigen::MatrixX3d& control);
 
 // Node positions (#N x 3) whose element maps interpolate f at every element's lattice
 // points: the new x(alpha/k) = f(x(alpha/k)) for every alpha of BernsteinIndices(k),

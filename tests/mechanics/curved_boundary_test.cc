@@ -1,0 +1,298 @@
+// The curved boundary of Bernstein-Bezier tetrahedra: tessellation of a ball whose
+// control points interpolate the sphere (area, volume, watertightness, convergence in
+// the subdivisions, the mesh size and the degree) and raising a linear ball mesh onto
+// the sphere (geometric error order, no inverted element).
+#include "mechanics/curved_boundary.h"
+
+#include <gtest/gtest.h>
+#include <Eigen/Geometry>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+
+#include "core/error.h"
+#include "core/mesh_generators.h"
+#include "core/mesh_ops.h"
+
+namespace arreg::mechanics {
+namespace {
+
+constexpr double kRadius = 10.0;  // mm
+
+Eigen::Vector3d OntoSphere(const Eigen::Vector3d& x) { return kRadius * x.normalized(); }
+
+// A ball of radius kRadius: an icosahedron subdivided `level` times on the sphere, 2^level
+// shells of prisms (each split into 3 tets by the global vertex order, so neighbours
+// match) around a core of tets to the centre. Every boundary tet has one boundary face,
+// edge length about 1.1 kRadius / 2^level; vertices of the outer shell on the sphere.
+TetMesh LinearBall(int level) {
+  std::vector<Eigen::Vector3d> v;
+  const double t = (1 + std::sqrt(5.0)) / 2;
+  for (double a : {-1.0, 1.0})
+    for (double b : {-t, t}) {
+      v.emplace_back(0, a, b);
+      v.emplace_back(a, b, 0);
+      v.emplace_back(b, 0, a);
+    }
+  for (auto& p : v) p.normalize();
+  // The 20 faces: triples of mutually adjacent vertices (edge length 2 before normalizing).
+  std::vector<std::array<int, 3>> faces;
+  double min_edge = 1e9;
+  for (size_t i = 0; i < v.size(); ++i)
+    for (size_t j = i + 1; j < v.size(); ++j) min_edge = std::min(min_edge, (v[i] - v[j]).norm());
+  auto adjacent = [&](int i, int j) { return (v[i] - v[j]).norm() < 1.01 * min_edge; };
+  for (int i = 0; i < 12; ++i)
+    for (int j = i + 1; j < 12; ++j)
+      for (int k = j + 1; k < 12; ++k)
+        if (adjacent(i, j) && adjacent(j, k) && adjacent(i, k)) faces.push_back({i, j, k});
+  for (int l = 0; l < level; ++l) {
+    std::map<std::pair<int, int>, int> mid;
+    auto midpoint = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      auto [it, inserted] = mid.emplace(key, static_cast<int>(v.size()));
+      if (inserted) v.push_back((v[a] + v[b]).normalized());
+      return it->second;
+    };
+    std::vector<std::array<int, 3>> finer;
+    for (const auto& f : faces) {
+      const int ab = midpoint(f[0], f[1]), bc = midpoint(f[1], f[2]), ca = midpoint(f[2], f[0]);
+      finer.push_back({f[0], ab, ca});
+      finer.push_back({f[1], bc, ab});
+      finer.push_back({f[2], ca, bc});
+      finer.push_back({ab, bc, ca});
+    }
+    faces = std::move(finer);
+  }
+  const int per_shell = static_cast<int>(v.size()), shells = 1 << level;
+  TetMesh ball;
+  ball.vertices.resize(per_shell * shells + 1, 3);
+  for (int s = 0; s < shells; ++s)
+    for (int i = 0; i < per_shell; ++i)
+      ball.vertices.row(s * per_shell + i) = (kRadius * (s + 1) / shells * v[i]).transpose();
+  const int centre = per_shell * shells;
+  ball.vertices.row(centre).setZero();
+  std::vector<Eigen::Vector4i> tets;
+  for (auto f : faces) {
+    std::sort(f.begin(), f.end());
+    tets.emplace_back(centre, f[0], f[1], f[2]);
+    for (int s = 1; s < shells; ++s) {
+      const int lo = (s - 1) * per_shell, hi = s * per_shell;
+      const int a = lo + f[0], b = lo + f[1], c = lo + f[2];
+      const int a1 = hi + f[0], b1 = hi + f[1], c1 = hi + f[2];
+      // Quad diagonals from the smaller bottom vertex to the larger one's top vertex.
+      tets.emplace_back(a, b, c, c1);
+      tets.emplace_back(a, b, b1, c1);
+      tets.emplace_back(a, a1, b1, c1);
+    }
+  }
+  ball.tetrahedra.resize(static_cast<int>(tets.size()), 4);
+  for (size_t i = 0; i < tets.size(); ++i) ball.tetrahedra.row(static_cast<int>(i)) = tets[i];
+  FixOrientation(&ball);
+  return ball;
+}
+
+const double kArea = 4 * M_PI * kRadius * kRadius;
+const double kVolume = 4.0 / 3.0 * M_PI * kRadius * kRadius * kRadius;
+
+double Rate(double coarse, double fine) { return std::log2(coarse / fine); }
+
+HighOrderTetMesh RaisedBall(int level, int degree, SurfaceRaiseSummary* summary = nullptr,
+                            bool relax = true) {
+  SurfaceRaiseOptions options;
+  options.project = OntoSphere;
+  options.relax_interior = relax;
+  return RaiseTetMeshOntoSurface(LinearBall(level), degree, options, summary);
+}
+
+TEST(CurvedBoundary, LinearBallIsAValidClosedBall) {
+  for (int level = 0; level <= 3; ++level) {
+    const TetMesh ball = LinearBall(level);
+    EXPECT_GT(TetVolumes(ball).minCoeff(), 0) << level;
+    const SurfaceMesh boundary = ExtractBoundary(ball);
+    EXPECT_EQ(boundary.num_faces(), 20 << (2 * level));
+    EXPECT_TRUE(AnalyzeSurface(boundary).closed_oriented_manifold());
+    const HighOrderTetMesh mesh = RaiseTetMesh(ball, 2);
+    EXPECT_EQ(HighOrderBoundaryFaces(mesh).size(), static_cast<size_t>(20 << (2 * level)));
+  }
+}
+
+TEST(CurvedBoundary, TessellationIsWatertightOutwardAndMovesWithTheNodes) {
+  const HighOrderTetMesh mesh = RaisedBall(1, 3);
+  for (int n : {1, 3, 5}) {
+    const CurvedBoundary boundary = TessellateBoundary(mesh, mesh.nodes, n);
+    EXPECT_EQ(boundary.faces.size(), 80u);
+    EXPECT_EQ(boundary.surface.num_faces(), 80 * n * n);
+    const SurfaceTopology topology = AnalyzeSurface(boundary.surface);
+    EXPECT_TRUE(topology.closed_oriented_manifold()) << n;
+    EXPECT_EQ(topology.euler_characteristic, 2) << n;
+    EXPECT_GT(EnclosedVolume(boundary.surface), 0.5 * kVolume) << "outward";
+    // The lattice points of degree 3 are where the faces interpolate the sphere.
+    if (n == 1 || n == 3) {
+      for (int v = 0; v < boundary.surface.num_vertices(); ++v)
+        EXPECT_NEAR(boundary.surface.vertices.row(v).norm(), kRadius, 1e-12);
+    }
+    // A surface vertex shared by faces of other elements lies on each of those faces'
+    // curved maps too: Newton in that element finds it on the face (L_opposite = 0).
+    int checked = 0;
+    for (int t = 0; t < boundary.surface.num_faces(); ++t)
+      for (int c = 0; c < 3; ++c) {
+        const int v = boundary.surface.faces(t, c);
+        const HighOrderBoundaryFace& face = boundary.faces[boundary.face_of_triangle[t]];
+        if (boundary.vertices.element(v) == face.element) continue;
+        const InverseMapResult r =
+            InvertBezierTet(3, ElementControlPoints(mesh, mesh.nodes, face.element),
+                            boundary.surface.vertices.row(v));
+        EXPECT_TRUE(r.converged);
+        EXPECT_NEAR(r.barycentric[face.opposite], 0, 1e-10);
+        ++checked;
+      }
+    EXPECT_GT(checked, 0);
+  }
+  // A rigid motion of the nodes moves the tessellation rigidly.
+  const Eigen::Matrix3d rotation =
+      Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  const CurvedBoundary boundary = TessellateBoundary(mesh, mesh.nodes, 4);
+  const RowMatX3d moved_nodes =
+      (mesh.nodes * rotation.transpose()).rowwise() + Eigen::RowVector3d(1, 2, 3);
+  const RowMatX3d expected =
+      (boundary.surface.vertices * rotation.transpose()).rowwise() + Eigen::RowVector3d(1, 2, 3);
+  EXPECT_LT((boundary.Evaluate(moved_nodes).vertices - expected).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_THROW(TessellateBoundary(mesh, mesh.nodes, 0), Error);
+}
+
+// Area and volume of the tessellated raised ball against 4 pi r^2 and 4/3 pi r^3: flat
+// triangles on the curved faces converge as n^-2 down to the error of the Bezier surface
+// itself, estimated by Richardson extrapolation in n (n = 16, 32), which falls with the
+// mesh size at a rate that grows with the degree.
+TEST(CurvedBoundary, AreaAndVolumeConvergeWithSubdivisionsMeshSizeAndDegree) {
+  const int n_of[6] = {1, 2, 4, 8, 16, 32};
+  std::printf("degree level  area error at n = 1 2 4 8 16 32 | extrapolated area, volume error\n");
+  double surface_area[4][3], surface_volume[4][3];
+  for (int k = 1; k <= 3; ++k) {
+    for (int level = 0; level <= 2; ++level) {
+      const HighOrderTetMesh mesh = RaisedBall(level, k);
+      double area[6], volume[6];
+      std::printf("%6d %5d ", k, level);
+      for (int ni = 0; ni < 6; ++ni) {
+        const CurvedBoundary b = TessellateBoundary(mesh, mesh.nodes, n_of[ni]);
+        area[ni] = SurfaceArea(b.surface);
+        volume[ni] = EnclosedVolume(b.surface);
+        std::printf(" %9.2e", std::abs(area[ni] - kArea) / kArea);
+      }
+      surface_area[k][level] = std::abs((4 * area[5] - area[4]) / 3 - kArea) / kArea;
+      surface_volume[k][level] = std::abs((4 * volume[5] - volume[4]) / 3 - kVolume) / kVolume;
+      std::printf(" | %9.2e %9.2e\n", surface_area[k][level], surface_volume[k][level]);
+      if (k >= 2) {
+        // n^-2 while the tessellation dominates
+        EXPECT_GT(Rate(std::abs(area[1] - area[5]), std::abs(area[2] - area[5])), 1.8);
+        EXPECT_GT(Rate(std::abs(area[2] - area[5]), std::abs(area[3] - area[5])), 1.8);
+      }
+    }
+  }
+  std::printf("rates of the extrapolated error with the mesh size (levels 0-1, 1-2):\n");
+  for (int k = 1; k <= 3; ++k) {
+    std::printf("degree %d: area %.2f %.2f volume %.2f %.2f\n", k,
+                Rate(surface_area[k][0], surface_area[k][1]),
+                Rate(surface_area[k][1], surface_area[k][2]),
+                Rate(surface_volume[k][0], surface_volume[k][1]),
+                Rate(surface_volume[k][1], surface_volume[k][2]));
+    // Interpolation of degree k: at least order k + 1 (P2 shows 4, the even-degree
+    // superconvergence of area and volume).
+    EXPECT_GT(Rate(surface_area[k][1], surface_area[k][2]), k + 1 - 0.3) << k;
+    EXPECT_GT(Rate(surface_volume[k][1], surface_volume[k][2]), k + 1 - 0.3) << k;
+    if (k > 1) {
+      EXPECT_LT(surface_area[k][2], 0.01 * surface_area[1][2]) << k;
+      EXPECT_LT(surface_volume[k][2], 0.01 * surface_volume[1][2]) << k;
+    }
+  }
+}
+
+// The linear ball raised onto the sphere (analytic projector): the largest distance of the
+// tessellated surface (n = 6) from the sphere falls at order k + 1; no element inverted
+// (the Bernstein bound of det J positive).
+TEST(CurvedBoundary, RaisingOntoTheSphereConvergesAtOrderKPlusOneWithoutInversion) {
+  std::printf(
+      "degree level relax  max |r - 10| (mm)  rate  inverted undecided  min det ratio "
+      "(sampled / bound)  interior move (mm)  elements  nodes  ms\n");
+  double finest[4] = {0, 0, 0, 0};
+  for (int k = 1; k <= 3; ++k) {
+    double previous = 0;
+    for (int level = 0; level <= 2; ++level) {
+      for (bool relax : {true, false}) {
+        SurfaceRaiseSummary summary;
+        const TetMesh linear = LinearBall(level);
+        SurfaceRaiseOptions options;
+        options.project = OntoSphere;
+        options.relax_interior = relax;
+        const auto start = std::chrono::steady_clock::now();
+        const HighOrderTetMesh mesh = RaiseTetMeshOntoSurface(linear, k, options, &summary);
+        const double ms =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+                .count();
+        const CurvedBoundary b = TessellateBoundary(mesh, mesh.nodes, 6);
+        double error = 0;
+        for (int v = 0; v < b.surface.num_vertices(); ++v)
+          error = std::max(error, std::abs(b.surface.vertices.row(v).norm() - kRadius));
+        std::printf("%6d %5d %5d  %17.3e  %4.2f  %8d %9d  %6.3f / %6.3f  %.3f  %d  %d  %.0f\n", k,
+                    level, relax, error, relax && previous > 0 ? Rate(previous, error) : 0.0,
+                    summary.num_inverted, summary.num_undecided, summary.min_sampled_ratio,
+                    summary.min_coefficient_ratio, summary.max_interior_move_mm,
+                    mesh.num_elements(), mesh.num_nodes(), ms);
+        if (relax) {
+          EXPECT_EQ(summary.num_inverted, 0) << k << " " << level;
+          EXPECT_EQ(summary.num_undecided, 0) << k << " " << level;
+          EXPECT_GT(summary.min_coefficient_ratio, 0.5) << k << " " << level;
+          // distance to the sphere: order k + 1 from level 1 to 2
+          if (level == 2) {
+            EXPECT_GT(Rate(previous, error), k + 1 - 0.3) << k;
+          }
+          finest[k] = error;
+          previous = error;
+        }
+      }
+    }
+  }
+  EXPECT_LT(finest[2], 0.01 * finest[1]);
+  EXPECT_LT(finest[3], finest[2]);
+}
+
+// A concave boundary over thin elements, where the relaxation matters: a 20 x 20 x 10 mm
+// box in 2 x 2 x 2 cells with its middle layer raised to z = 8.5 (top layer 1.5 mm thick),
+// its top face pressed into a dimple of depth A sin^2(pi x / 10) sin^2(pi y / 10) (zero at
+// the vertices). Without relaxation the straight interior control points stay above the
+// dipping top and the top elements invert; the elastic solve carries the dip inside.
+TEST(CurvedBoundary, RelaxationKeepsThinElementsUnderAConcaveBoundaryValid) {
+  TetMesh slab = MakeBoxTetMesh(Eigen::Vector3d(20, 20, 10), Eigen::Vector3i(2, 2, 2));
+  for (int v = 0; v < slab.num_vertices(); ++v)
+    if (std::abs(slab.vertices(v, 2) - 5) < 1e-9) slab.vertices(v, 2) = 8.5;
+  std::printf(
+      "degree depth (mm)  inverted without / with relaxation  min det ratio without / with\n");
+  bool relaxation_helped = false;
+  for (int k = 2; k <= 3; ++k) {
+    for (double depth : {0.5, 1.0, 1.5, 2.0}) {
+      SurfaceRaiseOptions options;
+      options.project = [depth](const Eigen::Vector3d& x) -> Eigen::Vector3d {
+        if (x.z() < 10 - 1e-9) return x;
+        const double sx = std::sin(M_PI * x.x() / 10), sy = std::sin(M_PI * x.y() / 10);
+        return Eigen::Vector3d(x.x(), x.y(), 10 - depth * sx * sx * sy * sy);
+      };
+      SurfaceRaiseSummary with, without;
+      options.relax_interior = false;
+      RaiseTetMeshOntoSurface(slab, k, options, &without);
+      options.relax_interior = true;
+      RaiseTetMeshOntoSurface(slab, k, options, &with);
+      std::printf("%6d %10.1f  %16d / %d  %12.3f / %.3f\n", k, depth, without.num_inverted,
+                  with.num_inverted, without.min_sampled_ratio, with.min_sampled_ratio);
+      EXPECT_LE(with.num_inverted, without.num_inverted) << k << " " << depth;
+      EXPECT_GE(with.min_sampled_ratio, without.min_sampled_ratio) << k << " " << depth;
+      if (without.num_inverted > 0 && with.num_inverted == 0 && with.num_undecided == 0)
+        relaxation_helped = true;
+    }
+  }
+  EXPECT_TRUE(relaxation_helped);
+}
+
+}  // namespace
+}  // namespace arreg::mechanics
