@@ -258,6 +258,24 @@ TEST(CurvedBoundary, RaisingOntoTheSphereConvergesAtOrderKPlusOneWithoutInversio
   EXPECT_LT(finest[3], finest[2]);
 }
 
+// The same raise with the sphere given as a finer triangle mesh (closest point): the
+// result matches the analytic projector up to the mesh's own chordal error.
+TEST(CurvedBoundary, RaisingOntoAFinerSurfaceMeshMatchesTheAnalyticProjector) {
+  const SurfaceMesh fine = MakeUvSphere(Eigen::Vector3d::Zero(), kRadius, 48, 96);
+  // Largest distance of the UV sphere from the true sphere: a quad's centre sags by
+  // about r (1 - cos(pi / 96) cos(pi / 96)).
+  const double chordal = kRadius * (1 - std::cos(M_PI / 96) * std::cos(M_PI / 96));
+  SurfaceRaiseOptions options;
+  options.project = ClosestPointProjector(fine);
+  SurfaceRaiseSummary summary;
+  const HighOrderTetMesh mesh = RaiseTetMeshOntoSurface(LinearBall(1), 2, options, &summary);
+  const HighOrderTetMesh exact = RaisedBall(1, 2);
+  EXPECT_EQ(summary.num_inverted, 0);
+  EXPECT_LT((mesh.nodes - exact.nodes).rowwise().norm().maxCoeff(), 4 * chordal);
+  EXPECT_GT((mesh.nodes - exact.nodes).rowwise().norm().maxCoeff(), 0);
+  EXPECT_THROW(ClosestPointProjector(SurfaceMesh{}), Error);
+}
+
 // A concave boundary over thin elements, where the relaxation matters: a 20 x 20 x 10 mm
 // box in 2 x 2 x 2 cells with its middle layer raised to z = 8.5 (top layer 1.5 mm thick),
 // its top face pressed into a dimple of depth A sin^2(pi x / 10) sin^2(pi y / 10) (zero at
