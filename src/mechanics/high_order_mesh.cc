@@ -4,6 +4,8 @@
 #include <map>
 
 #include "core/error.h"
+#include "core/mesh_io.h"
+#include "core/mesh_ops.h"
 
 namespace arreg::mechanics {
 
@@ -67,6 +69,73 @@ HighOrderTetMesh RaiseTetMesh(const TetMesh& mesh, int degree) {
   out.nodes.topRows(num_vertices) = mesh.vertices;
   for (size_t i = 0; i < extra.size(); ++i) out.nodes.row(num_vertices + i) = extra[i];
   return out;
+}
+
+HighOrderTetMesh HighOrderFromQuadraticTetMesh(const TetMesh& mesh, const std::string& file) {
+  const int num_tets = mesh.num_tetrahedra();
+  ARREG_CHECK_INPUT(mesh.high_order_nodes.rows() == num_tets && mesh.high_order_nodes.cols() == 6,
+                    file, "high_order_nodes", "expected ", num_tets, " x 6 edge nodes, got ",
+                    mesh.high_order_nodes.rows(), " x ", mesh.high_order_nodes.cols());
+  const int n = mesh.num_vertices();
+  for (Eigen::Index i = 0; i < mesh.high_order_nodes.size(); ++i)
+    ARREG_CHECK_INPUT(mesh.high_order_nodes.data()[i] >= 0 && mesh.high_order_nodes.data()[i] < n,
+                      file, "high_order_nodes", "node index ", mesh.high_order_nodes.data()[i],
+                      " out of range (", n, " nodes)");
+  for (Eigen::Index i = 0; i < mesh.tetrahedra.size(); ++i)
+    ARREG_CHECK_INPUT(mesh.tetrahedra.data()[i] >= 0 && mesh.tetrahedra.data()[i] < n, file,
+                      "tetrahedra", "vertex index ", mesh.tetrahedra.data()[i], " out of range (",
+                      n, " nodes)");
+  // The corners alone, in their order, as a linear mesh; raising it numbers the edges.
+  std::vector<int> corner(n, -1);
+  for (Eigen::Index i = 0; i < mesh.tetrahedra.size(); ++i) corner[mesh.tetrahedra.data()[i]] = 0;
+  TetMesh linear;
+  int num_corners = 0;
+  for (int v = 0; v < n; ++v)
+    if (corner[v] == 0) corner[v] = num_corners++;
+  linear.vertices.resize(num_corners, 3);
+  for (int v = 0; v < n; ++v)
+    if (corner[v] >= 0) linear.vertices.row(corner[v]) = mesh.vertices.row(v);
+  linear.tetrahedra.resize(num_tets, 4);
+  for (int t = 0; t < num_tets; ++t)
+    for (int c = 0; c < 4; ++c) linear.tetrahedra(t, c) = corner[mesh.tetrahedra(t, c)];
+  HighOrderTetMesh out = RaiseTetMesh(linear, 2);
+  // Local control point of edge (i, j) in BernsteinIndices(2) order.
+  const std::vector<std::array<int, 4>> indices = BernsteinIndices(2);
+  constexpr int kEdges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+  int local[6];
+  for (int e = 0; e < 6; ++e) {
+    std::array<int, 4> alpha = {0, 0, 0, 0};
+    ++alpha[kEdges[e][0]];
+    ++alpha[kEdges[e][1]];
+    local[e] = static_cast<int>(std::find(indices.begin(), indices.end(), alpha) - indices.begin());
+  }
+  std::vector<int> mid_of(out.num_nodes(), -1);
+  for (int t = 0; t < num_tets; ++t) {
+    for (int e = 0; e < 6; ++e) {
+      const int node = out.elements(t, local[e]);
+      const int mid = mesh.high_order_nodes(t, e);
+      if (mid_of[node] >= 0) {
+        ARREG_CHECK_INPUT(mesh.vertices.row(mid) == mesh.vertices.row(mid_of[node]), file,
+                          "high_order_nodes", "tetrahedron ", t, " gives its edge ",
+                          mesh.tetrahedra(t, kEdges[e][0]), "-", mesh.tetrahedra(t, kEdges[e][1]),
+                          " the mid-node ", mid, ", another tetrahedron the mid-node ",
+                          mid_of[node], " at a different position");
+        continue;
+      }
+      mid_of[node] = mid;
+      out.nodes.row(node) =
+          2 * mesh.vertices.row(mid) - 0.5 * (mesh.vertices.row(mesh.tetrahedra(t, kEdges[e][0])) +
+                                              mesh.vertices.row(mesh.tetrahedra(t, kEdges[e][1])));
+    }
+  }
+  return out;
+}
+
+HighOrderTetMesh ReadHighOrderTetMesh(const std::string& path, int linear_degree) {
+  TetMesh mesh = ReadTetMesh(path);
+  FixOrientation(&mesh);
+  if (mesh.high_order_nodes.size() > 0) return HighOrderFromQuadraticTetMesh(mesh, path);
+  return RaiseTetMesh(mesh, linear_degree);
 }
 
 }  // namespace arreg::mechanics

@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <string>
 #include <vector>
 
 #include "core/mesh.h"
@@ -40,5 +41,20 @@ struct HighOrderTetMesh {
 // same multiplicities (a shared edge or face). Throws arreg::Error naming
 // "degree" outside 1..3 or "tetrahedra" for a vertex index out of range.
 HighOrderTetMesh RaiseTetMesh(const TetMesh& mesh, int degree);
+
+// A mesh of 10-node (quadratic Lagrange) tetrahedra, TetMesh::high_order_nodes set (Gmsh
+// .msh element type 11, VTK quadratic tetra), as Bernstein degree 2: the corner vertices
+// (those `tetrahedra` use, in their order) first, then one control point per edge,
+// b = 2 x_mid - (x_a + x_b) / 2, the Bezier point of the quadratic through x_a, x_mid,
+// x_b at t = 0, 1/2, 1. Throws arreg::Error naming `file` (may be empty) and
+// "high_order_nodes" when the table is not one row of 6 per tetrahedron, an index is out
+// of range, or two tetrahedra give one edge mid-nodes at different positions.
+HighOrderTetMesh HighOrderFromQuadraticTetMesh(const TetMesh& mesh, const std::string& file = "");
+
+// Reads a tetrahedral mesh file (ReadTetMesh: Gmsh .msh 1/2.2/4.1 ASCII, VTK) with every
+// tetrahedron turned positive (FixOrientation): 10-node tetrahedra become degree 2
+// (HighOrderFromQuadraticTetMesh), linear ones are raised to `linear_degree` (straight).
+// Throws arreg::Error naming the file (and the line, for malformed content).
+HighOrderTetMesh ReadHighOrderTetMesh(const std::string& path, int linear_degree = 1);
 
 }  // namespace arreg::mechanics
