@@ -52,16 +52,8 @@ struct BoxScene {
 
 using BoxMotion = std::function<Eigen::RowVector3d(const Eigen::RowVector3d&, int)>;
 
-// `paint`, if given, draws over each rendered frame (an occluder) before it is encoded.
-BoxScene MakeMovingBoxScene(const std::string& name, int frames, const BoxMotion& motion,
-                            const std::function<void(int, cv::Mat*)>& paint = {}) {
-  BoxScene b;
-  b.dir = testing::ScratchDir(name);
-  TetMesh mesh = MakeBoxTetMesh(Eigen::Vector3d(60, 60, 10), Eigen::Vector3i(6, 6, 1));
-  for (int i = 0; i < mesh.vertices.rows(); ++i)
-    mesh.vertices.row(i) -= Eigen::RowVector3d(30, 30, 10);  // top face at z = 0
-  WriteTetMesh(b.dir + "/model.vtk", mesh);
-
+// The tests' camera: 320 x 256 px, 200 mm above the origin looking down -z.
+PinholeCamera TestCamera() {
   PinholeCamera camera;
   camera.width = 320;
   camera.height = 256;
@@ -69,13 +61,19 @@ BoxScene MakeMovingBoxScene(const std::string& name, int frames, const BoxMotion
   camera.cx = 159.5;
   camera.cy = 127.5;
   camera.LookAt(Eigen::Vector3d(0, 0, 200), Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 1, 0));
+  return camera;
+}
 
+// Renders `surface` (textured by its rest position) moving by `motion` to dir/video.mp4;
+// `paint`, if given, draws over each rendered frame (an occluder) before it is encoded.
+void RenderVideo(const std::string& dir, const PinholeCamera& camera, const SurfaceMesh& surface,
+                 int frames, const BoxMotion& motion,
+                 const std::function<void(int, cv::Mat*)>& paint = {}) {
   const render::RasterCamera raster = ToRasterCamera(camera);
-  SurfaceMesh surface = ExtractBoundary(mesh);
   VideoWriter writer;
   VideoWriterOptions wo;
   wo.crf = 0;
-  writer.Open(b.dir + "/video.mp4", camera.width, camera.height, 25.0, wo);
+  writer.Open(dir + "/video.mp4", camera.width, camera.height, 25.0, wo);
   for (int f = 0; f < frames; ++f) {
     RowMatX3d moved = surface.vertices;
     for (int i = 0; i < moved.rows(); ++i) moved.row(i) = motion(surface.vertices.row(i), f);
@@ -94,6 +92,18 @@ BoxScene MakeMovingBoxScene(const std::string& name, int frames, const BoxMotion
     writer.Write(image);
   }
   writer.Close();
+}
+
+BoxScene MakeMovingBoxScene(const std::string& name, int frames, const BoxMotion& motion,
+                            const std::function<void(int, cv::Mat*)>& paint = {}) {
+  BoxScene b;
+  b.dir = testing::ScratchDir(name);
+  TetMesh mesh = MakeBoxTetMesh(Eigen::Vector3d(60, 60, 10), Eigen::Vector3i(6, 6, 1));
+  for (int i = 0; i < mesh.vertices.rows(); ++i)
+    mesh.vertices.row(i) -= Eigen::RowVector3d(30, 30, 10);  // top face at z = 0
+  WriteTetMesh(b.dir + "/model.vtk", mesh);
+  const PinholeCamera camera = TestCamera();
+  RenderVideo(b.dir, camera, ExtractBoundary(mesh), frames, motion, paint);
 
   nlohmann::json j;
   j["model"] = "model.vtk";
@@ -290,6 +300,133 @@ class ConfigurationProbe : public FrameObserver {
   std::vector<std::string> fit_status;
   bool surface_matches = true;
 };
+
+// The top face (z = 0) of a size x size x 10 mm box mesh of n x n cells, centred on the z
+// axis and raised by `lift_mm`: a flat sheet, counter-clockwise seen from +z.
+SurfaceMesh TopSheet(double size_mm, int n, double lift_mm) {
+  TetMesh box = MakeBoxTetMesh(Eigen::Vector3d(size_mm, size_mm, 10), Eigen::Vector3i(n, n, 1));
+  for (int i = 0; i < box.vertices.rows(); ++i)
+    box.vertices.row(i) -= Eigen::RowVector3d(size_mm / 2, size_mm / 2, 10);
+  SurfaceMesh boundary = ExtractBoundary(box);
+  SurfaceMesh sheet;
+  sheet.vertices = boundary.vertices;
+  std::vector<Eigen::RowVector3i> top;
+  for (int f = 0; f < boundary.num_faces(); ++f) {
+    bool on_top = true;
+    for (int k = 0; k < 3; ++k)
+      on_top &= std::abs(boundary.vertices(boundary.faces(f, k), 2)) < 1e-9;
+    if (on_top) top.push_back(boundary.faces.row(f));
+  }
+  sheet.faces.resize(static_cast<int>(top.size()), 3);
+  for (size_t f = 0; f < top.size(); ++f) sheet.faces.row(f) = top[f];
+  RemoveUnreferencedVertices(&sheet);
+  sheet.vertices.col(2).array() += lift_mm;
+  return sheet;
+}
+
+// Keeps the thin structures' centroid of the last frame.
+class ThinProbe : public FrameObserver {
+ public:
+  void OnStart(const RunStart& start) override {
+    on_thin = start.features_on_thin;
+    attached = start.features_attached;
+  }
+  void OnFrame(const FrameState& f) override {
+    ASSERT_NE(f.thin, nullptr);
+    if (f.frame == 0) rest = Centroid(*f.thin);
+    if (f.is_last) {
+      last = Centroid(*f.thin);
+      organ = f.state->num_vertices() > 0
+                  ? Eigen::Vector3d(f.state->positions().colwise().mean().transpose() -
+                                    f.state->rest_positions().colwise().mean().transpose())
+                  : Eigen::Vector3d::Zero();
+    }
+  }
+  static Eigen::Vector3d Centroid(const std::vector<SurfaceMesh>& meshes) {
+    return meshes.at(0).vertices.colwise().mean().transpose();
+  }
+  Eigen::Vector3d rest = Eigen::Vector3d::Zero(), last = Eigen::Vector3d::Zero(),
+                  organ = Eigen::Vector3d::Zero();
+  int on_thin = 0, attached = 0;
+};
+
+// A scene of one membrane (a 60 x 60 mm sheet, no organ model) filmed while it shifts 6 mm:
+// features are lifted onto the shell, its springs pull it along (a rigid shift costs no
+// elastic energy, so the tolerance is the box test's), and the records hold the sheet.
+TEST(Pipeline, MembraneOnlySceneFollowsARigidShift) {
+  const std::string dir = testing::ScratchDir("pipeline_membrane");
+  const SurfaceMesh sheet = TopSheet(60, 6, 0.0);
+  WriteSurfaceMesh(dir + "/sheet.obj", sheet);
+  const PinholeCamera camera = TestCamera();
+  RenderVideo(dir, camera, sheet, 16, [](const Eigen::RowVector3d& p, int f) {
+    return Eigen::RowVector3d(p + Eigen::RowVector3d(0.5 * std::min(f, 12), 0, 0));
+  });
+  nlohmann::json j;
+  j["camera"] = CameraToJson(camera);
+  j["video"] = "video.mp4";
+  j["thin_structures"] = {{{"name", "sheet"},
+                           {"type", "shell"},
+                           {"mesh", "sheet.obj"},
+                           {"thickness_mm", 1.0},
+                           {"material", {{"youngs_modulus_pa", 20000.0}, {"poisson_ratio", 0.3}}}}};
+  std::ofstream(dir + "/scene.json") << j.dump(2);
+  const Scene scene = ReadScene(dir + "/scene.json");
+  PipelineOptions o = ReadPipelineOptions(scene);
+  o.render.enabled = false;
+  RegistrationPipeline pipe(scene, o);
+  ThinProbe probe;
+  RecordWriter records(dir + "/out", false);
+  pipe.AddObserver(&probe);
+  pipe.AddObserver(&records);
+  const RunSummary s = pipe.Run();
+  EXPECT_EQ(s.frames, 16);
+  const Eigen::Vector3d moved = probe.last - probe.rest;
+  EXPECT_NEAR(moved.x(), 6.0, 0.3);
+  EXPECT_NEAR(moved.y(), 0.0, 0.3);
+  EXPECT_NEAR(moved.z(), 0.0, 0.3);
+  // Records: thin/ and surface/ hold the sheet, no tetrahedral mesh, run.json names it.
+  const nlohmann::json run = ParseJsonFile(dir + "/out/run.json");
+  EXPECT_EQ(run["thin_structures"], nlohmann::json::array({"sheet"}));
+  EXPECT_GT(run["thin"]["features_attached"].get<int>(), 20);
+  EXPECT_EQ(run["thin"]["features_attached"], run["features"]["attached"]);
+  const SurfaceMesh thin = ReadSurfaceMesh(dir + "/out/thin/000015.obj");
+  EXPECT_EQ(thin.num_faces(), sheet.num_faces());
+  EXPECT_NEAR(thin.vertices.col(0).mean() - sheet.vertices.col(0).mean(), 6.0, 0.3);
+  EXPECT_EQ(ReadSurfaceMesh(dir + "/out/surface/000015.obj").num_faces(), sheet.num_faces());
+  EXPECT_FALSE(std::filesystem::exists(dir + "/out/mesh/000015.vtk"));
+}
+
+// The box with a 40 x 40 mm shell lying 0.3 mm above its top face, tied to it
+// (attach: "model"): features on the shell and on the box's rim pull one system; both follow
+// the 6 mm shift.
+TEST(Pipeline, ShellTiedToTheOrganFollowsItsShift) {
+  BoxScene b = MakeBoxScene("pipeline_tied_shell", 16, [](int f) { return 0.5 * std::min(f, 12); });
+  WriteSurfaceMesh(b.dir + "/shell.obj", TopSheet(40, 4, 0.3));
+  nlohmann::json j = ParseJsonFile(b.dir + "/scene.json");
+  j["thin_structures"] = {{{"name", "shell"},
+                           {"type", "shell"},
+                           {"mesh", "shell.obj"},
+                           {"thickness_mm", 0.5},
+                           {"attach", "model"},
+                           {"attach_distance_mm", 1.0}}};
+  std::ofstream(b.dir + "/scene.json") << j.dump(2);
+  const Scene scene = ReadScene(b.dir + "/scene.json");
+  PipelineOptions o = ReadPipelineOptions(scene);
+  o.render.enabled = false;
+  RegistrationPipeline pipe(scene, o);
+  ThinProbe probe;
+  pipe.AddObserver(&probe);
+  EXPECT_EQ(pipe.Run().frames, 16);
+  // The shell covers the middle of the box's top: features on both.
+  EXPECT_GT(probe.on_thin, 10);
+  EXPECT_GT(probe.attached - probe.on_thin, 10);
+  const Eigen::Vector3d shell = probe.last - probe.rest;
+  EXPECT_NEAR(shell.x(), 6.0, 0.3);
+  EXPECT_NEAR(shell.y(), 0.0, 0.3);
+  EXPECT_NEAR(shell.z(), 0.0, 0.3);
+  EXPECT_NEAR(probe.organ.x(), 6.0, 0.3);
+  EXPECT_NEAR(probe.organ.y(), 0.0, 0.3);
+}
 
 TEST(Pipeline, OutputFitChangesWhatIsShownOnly) {
   // The box is stretched along x by 1 % a frame for 12 frames, then held. The output fit
