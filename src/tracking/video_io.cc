@@ -123,6 +123,10 @@ struct VideoReader::Impl {
   bool frame_ready = false;  // `frame` holds frame `next_index`, not yet returned
   bool flushing = false;     // end of input was sent to the decoder
   bool finished = false;     // no more frames will come
+  // Damaged frames (VideoReaderOptions::Damaged::kRepeatLastGood).
+  AVFrame* last_good = nullptr;  // a reference to the last good frame decoded
+  std::vector<int> damaged;      // indices of the frames stood in for
+  int damaged_run_start = -1;    // first index of the current run of damaged frames, or -1
   cv::Mat limited_to_full_lut;
 
   ~Impl() { Release(); }
@@ -131,6 +135,7 @@ struct VideoReader::Impl {
     sws_freeContext(sws);
     sws = nullptr;
     av_frame_free(&frame);
+    av_frame_free(&last_good);
     av_packet_free(&packet);
     avcodec_free_context(&decoder);
     avformat_close_input(&format);
@@ -153,21 +158,61 @@ struct VideoReader::Impl {
     return std::llround(static_cast<double>(pts - start_pts) * av_q2d(time_base) * fps);
   }
 
-  // Decodes the next frame into `frame`. False at the end of the stream or at
-  // the first damaged frame (with a warning).
+  bool RepeatDamaged() const {
+    return options.damaged == VideoReaderOptions::Damaged::kRepeatLastGood;
+  }
+
+  // Puts the last good frame into `frame` in place of frame `next_index`. False
+  // when there is none yet (the damage is in the first frame).
+  bool StandIn() {
+    if (last_good == nullptr) return false;
+    av_frame_unref(frame);
+    const int r = av_frame_ref(frame, last_good);
+    ARREG_CHECK_INPUT(r >= 0, path, FrameWhere(next_index), "out of memory");
+    if (damaged_run_start < 0) damaged_run_start = next_index;
+    damaged.push_back(next_index);
+    return true;
+  }
+
+  // One warning per run of damaged frames, when the run ends (a good frame or the end).
+  void WarnDamagedRun() {
+    if (damaged_run_start < 0) return;
+    const int last = damaged.back();
+    ARREG_LOG_WARNING(FormatErrorMessage(
+        path,
+        damaged_run_start == last
+            ? FrameWhere(last)
+            : "frames " + std::to_string(damaged_run_start) + "-" + std::to_string(last),
+        "damaged (decode errors); the last good frame stands in"));
+    damaged_run_start = -1;
+  }
+
+  void GoodFrame() {
+    WarnDamagedRun();
+    if (!RepeatDamaged()) return;
+    if (last_good == nullptr) last_good = av_frame_alloc();
+    av_frame_unref(last_good);
+    if (av_frame_ref(last_good, frame) < 0) av_frame_free(&last_good);
+  }
+
+  // Decodes the next frame into `frame`. False at the end of the stream or, with
+  // Damaged::kStop, at the first damaged frame (with a warning).
   bool DecodeNext() {
     if (finished) return false;
     for (;;) {
       int r = avcodec_receive_frame(decoder, frame);
       if (r == 0) {
         if ((frame->flags & AV_FRAME_FLAG_CORRUPT) || frame->decode_error_flags) {
+          if (RepeatDamaged() && StandIn()) return true;
           StopWithWarning("damaged frame (decode errors)");
           return false;
         }
+        GoodFrame();
         return true;
       }
       if (r == AVERROR_EOF) {
         finished = true;
+        WarnDamagedRun();
         if (next_index < frame_count) {
           StopWithWarning("stream ends early, " + std::to_string(frame_count) +
                           " frames announced (truncated file?)");
@@ -175,6 +220,7 @@ struct VideoReader::Impl {
         return false;
       }
       if (r != AVERROR(EAGAIN)) {
+        if (RepeatDamaged() && StandIn()) return true;
         StopWithWarning("decode error: " + AvErrorString(r));
         return false;
       }
@@ -201,6 +247,8 @@ struct VideoReader::Impl {
       r = avcodec_send_packet(decoder, packet);
       av_packet_unref(packet);
       if (r < 0 && r != AVERROR(EAGAIN)) {
+        // One packet of a video stream holds one frame: it gets its stand-in now.
+        if (RepeatDamaged() && StandIn()) return true;
         StopWithWarning("cannot decode packet: " + AvErrorString(r));
         return false;
       }
@@ -328,6 +376,7 @@ struct VideoReader::Impl {
     frame_ready = false;
     flushing = false;
     finished = false;
+    damaged_run_start = -1;
     // Decode from the key frame before `target` up to it. Frames are counted
     // by their timestamps, which the seek leaves consistent.
     next_index = target;
@@ -373,6 +422,7 @@ int VideoReader::width() const { return impl_->width; }
 int VideoReader::height() const { return impl_->height; }
 int VideoReader::next_frame_index() const { return impl_->next_index; }
 bool VideoReader::truncated() const { return impl_->truncated; }
+const std::vector<int>& VideoReader::damaged_frames() const { return impl_->damaged; }
 
 bool VideoReader::Read(cv::Mat* bgr) {
   ARREG_ASSERT(bgr != nullptr, "");

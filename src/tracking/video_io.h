@@ -4,6 +4,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -18,6 +19,13 @@ struct VideoReaderOptions {
   bool skip_loop_filter = false;
   // Frame rate reported for image-folder sequences, in frames per second (default 25).
   double image_sequence_fps = 25.0;
+  // What a damaged frame in the middle of a file becomes (a frame the decoder flags as
+  // corrupt, or a packet it refuses): kRepeatLastGood (default) returns the last good frame
+  // in its place, so frame indices stay those of the file (and of any ground truth), lists it
+  // in damaged_frames() and warns once per run of damaged frames; kStop ends the video there
+  // as if the file were truncated.
+  enum class Damaged { kRepeatLastGood, kStop };
+  Damaged damaged = Damaged::kRepeatLastGood;
 
   void Check() const;  // throws arreg::Error naming the bad field
 };
@@ -27,9 +35,11 @@ struct VideoReaderOptions {
 // Errors: a file that cannot be opened, holds no video stream, uses a codec
 // this FFmpeg cannot decode, or whose first frame does not decode throws
 // arreg::Error naming the file (and the frame). A file that breaks off later
-// (truncated, corrupt packets) is read up to the last good frame: Read()
-// returns false there, a warning names the file and frame, `truncated()` turns
-// true and frame_count() is lowered to the frames actually decoded.
+// (truncated, unreadable) is read up to the last good frame: Read() returns
+// false there, a warning names the file and frame, `truncated()` turns true and
+// frame_count() is lowered to the frames actually decoded. Damaged frames in
+// the middle (corrupt packets, a lost key frame) are replaced by the last good
+// frame and listed (VideoReaderOptions::damaged).
 class VideoReader {
  public:
   VideoReader();
@@ -53,8 +63,11 @@ class VideoReader {
   int height() const;
   // Index of the frame the next Read()/ReadGray() returns.
   int next_frame_index() const;
-  // True once a decode/read error or an early end of stream was met.
+  // True once a read error or an early end of stream ended the video.
   bool truncated() const;
+  // Indices of the frames returned so far that were damaged in the file and
+  // replaced by the last good frame (ascending).
+  const std::vector<int>& damaged_frames() const;
 
   // Next frame as 8-bit BGR (CV_8UC3). False at the end (or the last good frame).
   bool Read(cv::Mat* bgr);

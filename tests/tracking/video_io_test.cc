@@ -220,6 +220,50 @@ TEST(VideoReader, TruncatedFileIsReadUpToTheLastGoodFrame) {
   }
 }
 
+// Random bytes over a stretch in the middle of the stream: every frame index is still returned,
+// the damaged ones replaced by the last good frame and listed; kStop ends the video there.
+TEST(VideoReader, DamagedFramesInTheMiddleAreStoodInForByTheLastGoodFrame) {
+  const std::string dir = testing::ScratchDir("video_damaged");
+  const std::string path = WriteClip(dir + "/clip.mp4", 60, 320, 240, 25.0);
+  {
+    std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(static_cast<std::streamoff>(fs::file_size(path) * 6 / 10));
+    std::mt19937 rng(5);
+    for (int i = 0; i < 3000; ++i) f.put(static_cast<char>(rng() & 0xff));
+  }
+  VideoReader reader;
+  reader.Open(path);
+  cv::Mat bgr, previous;
+  int count = 0;
+  std::vector<int> seen_damaged;
+  while (reader.Read(&bgr)) {
+    const auto& damaged = reader.damaged_frames();
+    if (!damaged.empty() && damaged.back() == count) {
+      seen_damaged.push_back(count);
+      ASSERT_FALSE(previous.empty()) << "frame " << count;
+      EXPECT_EQ(cv::norm(bgr, previous, cv::NORM_INF), 0.0) << "frame " << count;
+    } else if (seen_damaged.empty()) {
+      EXPECT_GT(cv::PSNR(bgr, SyntheticFrame(count, 320, 240)), 30.0) << "frame " << count;
+    }
+    bgr.copyTo(previous);
+    ++count;
+  }
+  EXPECT_EQ(count, 60);
+  EXPECT_FALSE(reader.truncated());
+  EXPECT_FALSE(seen_damaged.empty());
+  EXPECT_EQ(seen_damaged, reader.damaged_frames());
+  EXPECT_GT(seen_damaged.front(), 5);
+
+  VideoReaderOptions stop;
+  stop.damaged = VideoReaderOptions::Damaged::kStop;
+  reader.Open(path, stop);
+  int stopped = 0;
+  while (reader.Read(&bgr)) ++stopped;
+  EXPECT_EQ(stopped, seen_damaged.front());
+  EXPECT_TRUE(reader.truncated());
+  EXPECT_TRUE(reader.damaged_frames().empty());
+}
+
 TEST(VideoWriter, DestructorWithoutCloseLeavesNoFile) {
   const std::string dir = testing::ScratchDir("video_abandon");
   {
