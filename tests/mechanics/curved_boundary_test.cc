@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <random>
 
 #include "core/error.h"
 #include "core/mesh_generators.h"
@@ -98,6 +99,11 @@ const double kVolume = 4.0 / 3.0 * M_PI * kRadius * kRadius * kRadius;
 
 double Rate(double coarse, double fine) { return std::log2(coarse / fine); }
 
+double Ms(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+      .count();
+}
+
 HighOrderTetMesh RaisedBall(int level, int degree, SurfaceRaiseSummary* summary = nullptr,
                             bool relax = true) {
   SurfaceRaiseOptions options;
@@ -172,7 +178,8 @@ TEST(CurvedBoundary, AreaAndVolumeConvergeWithSubdivisionsMeshSizeAndDegree) {
   double surface_area[4][3], surface_volume[4][3];
   for (int k = 1; k <= 3; ++k) {
     for (int level = 0; level <= 2; ++level) {
-      const HighOrderTetMesh mesh = RaisedBall(level, k);
+      // The relaxation moves only interior control points: the surface is the same.
+      const HighOrderTetMesh mesh = RaisedBall(level, k, nullptr, false);
       double area[6], volume[6];
       std::printf("%6d %5d ", k, level);
       for (int ni = 0; ni < 6; ++ni) {
@@ -256,6 +263,52 @@ TEST(CurvedBoundary, RaisingOntoTheSphereConvergesAtOrderKPlusOneWithoutInversio
   }
   EXPECT_LT(finest[2], 0.01 * finest[1]);
   EXPECT_LT(finest[3], finest[2]);
+}
+
+// Points embedded in the curved (raised) ball by the inverse map come back where they were
+// and follow an affine motion of the control points exactly; the cost of embedding, of
+// re-evaluating the points and of tessellating and re-evaluating the boundary is printed.
+TEST(CurvedBoundary, PointsEmbeddedInTheCurvedBallFollowTheControlPoints) {
+  std::printf(
+      "degree tets nodes | embed 1000 points ms | positions ms | tessellate n = 4: "
+      "triangles ms | evaluate ms\n");
+  for (int k = 2; k <= 3; ++k) {
+    // Without relaxation (its solve is the slow part; the boundary elements are curved).
+    const HighOrderTetMesh mesh = RaisedBall(2, k, nullptr, false);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(-kRadius, kRadius);
+    RowMatX3d points(1000, 3);
+    for (int n = 0; n < points.rows();) {
+      const Eigen::Vector3d p(u(rng), u(rng), u(rng));
+      if (p.norm() < 0.97 * kRadius) points.row(n++) = p.transpose();
+    }
+    auto start = std::chrono::steady_clock::now();
+    const HighOrderEmbedding embedded = HighOrderEmbedding::Embed(mesh, mesh.nodes, points);
+    const double embed_ms = Ms(start);
+    EXPECT_EQ(embedded.num_outside(), 0);
+    start = std::chrono::steady_clock::now();
+    const RowMatX3d back = embedded.Positions(mesh.nodes);
+    const double positions_ms = Ms(start);
+    EXPECT_LT((back - points).cwiseAbs().maxCoeff(), 1e-11);
+    const Eigen::Matrix3d a =
+        Eigen::AngleAxisd(0.4, Eigen::Vector3d(0, 1, 1).normalized()).toRotationMatrix() *
+        Eigen::Vector3d(1.2, 0.9, 1.05).asDiagonal();
+    const auto affine = [&](const Eigen::Vector3d& x) -> Eigen::Vector3d {
+      return a * x + Eigen::Vector3d(3, -2, 1);
+    };
+    const RowMatX3d moved = embedded.Positions(InterpolateMap(mesh, mesh.nodes, affine));
+    for (int i = 0; i < points.rows(); ++i)
+      EXPECT_LT((moved.row(i).transpose() - affine(points.row(i))).norm(), 1e-11);
+    start = std::chrono::steady_clock::now();
+    const CurvedBoundary boundary = TessellateBoundary(mesh, mesh.nodes, 4);
+    const double tessellate_ms = Ms(start);
+    start = std::chrono::steady_clock::now();
+    const SurfaceMesh surface = boundary.Evaluate(mesh.nodes);
+    const double evaluate_ms = Ms(start);
+    std::printf("%6d %d %d | %.1f | %.3f | %d %.1f | %.3f\n", k, mesh.num_elements(),
+                mesh.num_nodes(), embed_ms, positions_ms, surface.num_faces(), tessellate_ms,
+                evaluate_ms);
+  }
 }
 
 // The same raise with the sphere given as a finer triangle mesh (closest point): the
