@@ -20,6 +20,8 @@ struct Bench {
 const Bench kBenches[] = {
     {"accuracy", RunBenchAccuracy,
      "cut detection and registration accuracy over the scene manifest (dev/test splits)"},
+    {"align", RunBenchAlign,
+     "align from perturbed poses (kidney, band): success rates, time per frame"},
     {"cutting", RunBenchCutting, "beam cut: ours vs Bielser (growth, conditioning), event time"},
     {"detection", RunBenchDetection, "cut detection per frame (700 features, ~9,000 pairs)"},
     {"frames", RunBenchFrames,

@@ -5,6 +5,7 @@
 
 namespace arreg::cli {
 
+int RunAlign(int argc, char** argv);
 int RunBench(int argc, char** argv);
 int RunDebug(int argc, char** argv);
 int RunEval(int argc, char** argv);
@@ -14,6 +15,7 @@ int RunSynth(int argc, char** argv);
 
 // Benchmarks dispatched by RunBench (apps/bench_*.cc).
 int RunBenchAccuracy(int argc, char** argv);
+int RunBenchAlign(int argc, char** argv);
 int RunBenchCutting(int argc, char** argv);
 int RunBenchDetection(int argc, char** argv);
 int RunBenchMechanics(int argc, char** argv);

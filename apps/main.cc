@@ -19,6 +19,7 @@ struct Command {
 
 // Keep in step with README.md ("Commands").
 constexpr Command kCommands[] = {
+    {"align", arreg::cli::RunAlign, "place the model from one frame's outline/landmarks (Ceres)"},
     {"bench", arreg::cli::RunBench, "speed benchmarks that print figures and write JSON"},
     {"debug", arreg::cli::RunDebug, "viewer of a run recorded with --debug; annotated frame PNGs"},
     {"eval", arreg::cli::RunEval, "accuracy against ground truth: Dice, Hausdorff, feature error"},
