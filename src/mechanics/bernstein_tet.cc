@@ -7,6 +7,8 @@
 #include <map>
 
 #include "core/error.h"
+#include "mechanics/bernstein_nonlinear.h"
+#include "mechanics/curved_tet.h"
 
 namespace arreg::mechanics {
 
@@ -176,7 +178,6 @@ BernsteinTetTerm::BernsteinTetTerm(const HighOrderTetMesh* mesh, std::vector<int
                     " control points per element, degree ", k, " needs ", n);
   const double lambda = options_.material.LameLambdaKpa();
   const double mu = options_.material.LameMuKpa();
-  lumped_mass_per_volume_ = options_.material.DensityKgPerMm3() / BernsteinCount(k);
   elements_.resize(mesh_->num_elements());
   for (int e = 0; e < mesh_->num_elements(); ++e) {
     Element& el = elements_[e];
@@ -196,16 +197,23 @@ BernsteinTetTerm::BernsteinTetTerm(const HighOrderTetMesh* mesh, std::vector<int
                       rest.volume_mm3, " mm^3");
     el.g = rest.shape_gradients;
     el.volume = rest.volume_mm3;
-    // The closed-form integrals assume the affine rest map (constant Jacobian).
+    // The closed-form integrals hold for the affine rest map (constant Jacobian); a
+    // control point off its affine Bezier point makes the element curved (isoparametric).
     const double size = (el.rest.row(1) - el.rest.row(0)).norm();
+    el.curved = false;
     for (int a = 4; a < n; ++a) {
       Eigen::RowVector3d affine = Eigen::RowVector3d::Zero();
       for (int i = 0; i < 4; ++i) affine += indices_[a][i] * el.rest.row(i) / k;
-      ARREG_CHECK_INPUT((affine - el.rest.row(a)).norm() <= 1e-9 * size, "", "elements", "element ",
-                        e, " control point ", a,
-                        " is off its affine Bezier point (curved rest geometry is not supported)");
+      if ((affine - el.rest.row(a)).norm() > 1e-9 * size) el.curved = true;
+    }
+    if (el.curved) {
+      ARREG_CHECK_INPUT(options_.pressure_degree < 0, "", "elements", "element ", e,
+                        " is curved: the mixed u-p formulation needs straight elements");
+      InitCurvedElement(e, lambda, mu);
+      continue;
     }
     el.mean_gradients = BernsteinMeanGradients(k, el.g);
+    el.lumped_mass.assign(n, options_.material.DensityKgPerMm3() * el.volume / BernsteinCount(k));
     el.stiffness = options_.pressure_degree < 0
                        ? BernsteinStiffnessMatrix(k, el.g, el.volume, lambda, mu)
                        : BernsteinMixedStiffnessMatrix(k, options_.pressure_degree, el.g, el.volume,
@@ -293,7 +301,8 @@ void BernsteinTetTerm::AddHessian(const GeneralisedState& state, double scale,
 void BernsteinTetTerm::AddNodeInertia(const GeneralisedState& state,
                                       std::vector<NodeInertia>* inertia) const {
   for (const Element& el : elements_)
-    for (int node : el.nodes) (*inertia)[node].mass_kg += lumped_mass_per_volume_ * el.volume;
+    for (size_t a = 0; a < el.nodes.size(); ++a)
+      (*inertia)[el.nodes[a]].mass_kg += el.lumped_mass[a];
 }
 
 Eigen::Vector3d BernsteinTetTerm::Position(const GeneralisedState& state, int e,
@@ -304,9 +313,57 @@ Eigen::Vector3d BernsteinTetTerm::Position(const GeneralisedState& state, int e,
   return p;
 }
 
+Eigen::MatrixX3d BernsteinTetTerm::RestGradients(int e, const Eigen::Vector4d& L) const {
+  const Element& el = elements_[e];
+  if (!el.curved) return BernsteinGradients(mesh_->degree, el.g, L);
+  // grad_X B = J^-T grad_xi B, rows: grad_xi B J^-1 (xi = (L1, L2, L3)).
+  Eigen::Matrix<double, 4, 3> reference = Eigen::Matrix<double, 4, 3>::Zero();
+  reference.row(0).setConstant(-1);
+  reference.bottomRows<3>().setIdentity();
+  const Eigen::Matrix3d j = BezierTetJacobian(mesh_->degree, el.rest, L);
+  return BernsteinGradients(mesh_->degree, reference, L) * j.inverse();
+}
+
+void BernsteinTetTerm::InitCurvedElement(int e, double lambda_kpa, double mu_kpa) {
+  Element& el = elements_[e];
+  const int k = mesh_->degree;
+  const int n = static_cast<int>(indices_.size());
+  // det J has degree 3(k - 1); cof(J) grad_xi B (the integrand of the mean gradients and
+  // of the consistent forces) too, so the patch test holds exactly; the stiffness
+  // integrand is rational, integrated to degree 6(k - 1).
+  std::vector<Eigen::Vector4d> points;
+  std::vector<double> weights;
+  TetQuadrature(6 * (k - 1), &points, &weights);
+  el.stiffness = Eigen::MatrixXd::Zero(3 * n, 3 * n);
+  el.mean_gradients = Eigen::MatrixX3d::Zero(n, 3);
+  el.lumped_mass.assign(n, 0.0);
+  el.volume = 0;
+  const double density = options_.material.DensityKgPerMm3();
+  for (size_t q = 0; q < points.size(); ++q) {
+    const double det = BezierTetJacobian(k, el.rest, points[q]).determinant();
+    ARREG_CHECK_INPUT(det > 0, "", "elements", "curved element ", e,
+                      " is inverted at a quadrature point (det J = ", det, ")");
+    const double dv = weights[q] * det / 6.0;  // the reference tetrahedron has volume 1/6
+    const Eigen::MatrixX3d grads = RestGradients(e, points[q]);
+    const Eigen::VectorXd values = BernsteinValues(k, points[q]);
+    el.volume += dv;
+    el.mean_gradients += dv * grads;
+    for (int a = 0; a < n; ++a) {
+      el.lumped_mass[a] += density * dv * values[a];
+      for (int b = 0; b < n; ++b) {
+        const Eigen::Matrix3d G = grads.row(a).transpose() * grads.row(b);
+        Eigen::Matrix3d block = lambda_kpa * G + mu_kpa * G.transpose();
+        block.diagonal().array() += mu_kpa * G.trace();
+        el.stiffness.block<3, 3>(3 * a, 3 * b) += dv * block;
+      }
+    }
+  }
+  el.mean_gradients /= el.volume;
+}
+
 Eigen::Matrix3d BernsteinTetTerm::DeformationGradientAt(const GeneralisedState& state, int e,
                                                         const Eigen::Vector4d& L) const {
-  const Eigen::MatrixX3d grads = BernsteinGradients(mesh_->degree, elements_[e].g, L);
+  const Eigen::MatrixX3d grads = RestGradients(e, L);
   Eigen::Matrix3d F = Eigen::Matrix3d::Zero();
   for (size_t a = 0; a < indices_.size(); ++a)
     F += state.position(elements_[e].nodes[a]) * grads.row(a);

@@ -98,11 +98,19 @@ struct BernsteinTetOptions {
 // s = (tr(S) I - S)^-1 tau, S = R^T F_e; tau vanishes for k = 1). Hessian: the
 // stiffness-warping R K_e R^T (dR/dx neglected, as CorotationalElasticity), positive
 // semi-definite. Mass: row-sum lumped (BernsteinLumpedMass).
+// Curved rest geometry (control points off the affine Bezier points, e.g. from
+// RaiseTetMeshOntoSurface or a curved Gmsh mesh) makes the element isoparametric:
+// grad_X B = J^-T grad_xi B, and K_e, c_alpha, the lumped masses rho int B_alpha dV and
+// the volume come from quadrature (TetQuadrature of degree 6(k - 1)); cof(J) grad_xi B is
+// a polynomial of degree 3(k - 1), integrated exactly, so constant strain still passes the
+// patch test. Displacement formulation only.
 class BernsteinTetTerm : public GeneralisedEnergyTerm, public InertiaSource {
  public:
   // `mesh` must outlive this; node[i]: the state's point node of mesh node i (#N).
-  // Throws arreg::Error naming "elements" for an element of non-positive volume or
-  // with rest control points off the affine Bezier points (1e-9 of its size).
+  // Throws arreg::Error naming "elements" for an element of non-positive corner volume,
+  // a curved element inverted at a quadrature point, or a curved element with
+  // pressure_degree >= 0 (a control point more than 1e-9 of the element's size off its
+  // affine Bezier point makes it curved).
   BernsteinTetTerm(const HighOrderTetMesh* mesh, std::vector<int> node,
                    const BernsteinTetOptions& options = {});
   std::string name() const override { return "bernstein-tet"; }
@@ -135,16 +143,21 @@ class BernsteinTetTerm : public GeneralisedEnergyTerm, public InertiaSource {
     std::vector<int> nodes;           // state nodes of the control points
     Eigen::MatrixX3d rest;            // X_alpha (n x 3)
     Eigen::MatrixX3d mean_gradients;  // c_alpha (n x 3)
-    Eigen::Matrix<double, 4, 3> g;    // grad L_i
+    Eigen::Matrix<double, 4, 3> g;    // grad L_i of the corner tetrahedron
     Eigen::MatrixXd stiffness;        // K (3n x 3n)
-    double volume = 0;
+    std::vector<double> lumped_mass;  // rho int B_alpha dV (kg)
+    double volume = 0;                // mm^3 (of the curved element when curved)
+    bool curved = false;              // rest control points off the affine Bezier points
   };
+  // Stiffness, mean gradients, masses and volume of a curved element by quadrature.
+  void InitCurvedElement(int e, double lambda_kpa, double mu_kpa);
+  // grad_X B_alpha at L in the rest geometry (n x 3).
+  Eigen::MatrixX3d RestGradients(int e, const Eigen::Vector4d& L) const;
   const HighOrderTetMesh* mesh_;
   std::vector<int> node_;
   BernsteinTetOptions options_;
   std::vector<std::array<int, 4>> indices_;
   std::vector<Element> elements_;
-  double lumped_mass_per_volume_ = 0;  // rho / C(k+3,3), kg/mm^3
   // Per element at the last Update: rotation (and its quaternion warm start), gradient.
   std::vector<Eigen::Matrix3d> rotations_;
   std::vector<Eigen::Quaterniond> quaternions_;
