@@ -107,16 +107,7 @@ TEST(CurvedBernsteinTet, GradientMatchesDifferencesOfTheEnergy) {
     m->state.ApplyIncrement(increment);
     m->term->Update(m->state);
     const Eigen::VectorXd g = testing::Gradient(*m->term, m->state);
-    const double h = 1e-6;
-    Eigen::VectorXd fd(g.size());
-    for (int i = 0; i < g.size(); ++i) {
-      GeneralisedState plus = testing::Perturbed(m->state, i, h);
-      GeneralisedState minus = testing::Perturbed(m->state, i, -h);
-      m->term->Update(plus);
-      const double e_plus = m->term->Value(plus);
-      m->term->Update(minus);
-      fd[i] = (e_plus - m->term->Value(minus)) / (2 * h);
-    }
+    const Eigen::VectorXd fd = testing::EnergyGradientByDifferences(m->term.get(), m->state, 1e-6);
     EXPECT_LT((g - fd).norm(), 1e-6 * g.norm()) << k;
   }
 }

@@ -11,6 +11,7 @@
 
 #include "core/mesh.h"
 #include "core/mesh_ops.h"
+#include "generalised_fd.h"
 #include "mechanics/curved_boundary.h"
 
 namespace arreg::mechanics::testing {
@@ -95,6 +96,21 @@ inline HighOrderTetMesh RaisedBall(int level, int degree, SurfaceRaiseSummary* s
   options.project = OntoSphere;
   options.relax_interior = relax;
   return RaiseTetMeshOntoSurface(LinearBall(level), degree, options, summary);
+}
+
+// Central differences (step h) of a term's energy (Update, then Value) along every DOF.
+inline Eigen::VectorXd EnergyGradientByDifferences(GeneralisedEnergyTerm* term,
+                                                   const GeneralisedState& state, double h) {
+  Eigen::VectorXd fd(state.num_dofs());
+  for (int i = 0; i < fd.size(); ++i) {
+    const GeneralisedState plus = Perturbed(state, i, h), minus = Perturbed(state, i, -h);
+    term->Update(plus);
+    const double e_plus = term->Value(plus);
+    term->Update(minus);
+    fd[i] = (e_plus - term->Value(minus)) / (2 * h);
+  }
+  term->Update(state);
+  return fd;
 }
 
 }  // namespace arreg::mechanics::testing
