@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/mesh_io.h"
 #include "mechanics/curved_tet.h"
 #include "mechanics/high_order_mesh.h"
 #include "test_util.h"
@@ -139,6 +140,47 @@ TEST(GmshQuadratic, CurvedElementsInterpolateEveryFileNodeAndTheQuadraticField) 
         EXPECT_LT((BezierTetPoint(2, control, L) - Quadratic(X)).norm(), 1e-12);
       }
     }
+  }
+}
+
+// The same curved mesh through VTK (quadratic tetra, its own node order), ASCII and binary:
+// the control points equal the in-memory conversion's.
+TEST(GmshQuadratic, VtkQuadraticTetraGiveTheSameControlPoints) {
+  const TwoTets m = MakeTwoTets(true);
+  TetMesh mesh;
+  mesh.vertices.resize(static_cast<int>(m.nodes.size()), 3);
+  for (size_t i = 0; i < m.nodes.size(); ++i)
+    mesh.vertices.row(static_cast<int>(i)) = m.nodes[i].transpose();
+  mesh.tetrahedra.resize(2, 4);
+  mesh.high_order_nodes.resize(2, 6);
+  // TetMesh edge order (ab, ac, ad, bc, bd, cd) from the Gmsh one (01, 12, 20, 30, 32, 31).
+  constexpr int kFromGmsh[6] = {0, 2, 3, 1, 5, 4};
+  for (int t = 0; t < 2; ++t) {
+    for (int c = 0; c < 4; ++c) mesh.tetrahedra(t, c) = m.tets[t][c] - 1;
+    for (int e = 0; e < 6; ++e) mesh.high_order_nodes(t, e) = m.tets[t][4 + kFromGmsh[e]] - 1;
+  }
+  const HighOrderTetMesh expected = HighOrderFromQuadraticTetMesh(mesh);
+  for (bool binary : {false, true}) {
+    const std::string path = testing::ScratchDir("high_order_io") + "/curved.vtk";
+    MeshWriteOptions options;
+    options.binary = binary;
+    WriteTetMesh(path, mesh, options);
+    const HighOrderTetMesh read = ReadHighOrderTetMesh(path);
+    EXPECT_EQ(read.elements, expected.elements);
+    EXPECT_LT((read.nodes - expected.nodes).cwiseAbs().maxCoeff(), 1e-12) << binary;
+    EXPECT_GT((read.nodes.bottomRows(9) - RaiseTetMesh(
+                                              [&] {
+                                                TetMesh corners;
+                                                corners.vertices = mesh.vertices.topRows(5);
+                                                corners.tetrahedra = mesh.tetrahedra;
+                                                return corners;
+                                              }(),
+                                              2)
+                                              .nodes.bottomRows(9))
+                  .cwiseAbs()
+                  .maxCoeff(),
+              0.1)
+        << "the edges are curved";
   }
 }
 
