@@ -21,7 +21,7 @@ namespace arreg::cli {
 namespace {
 
 std::atomic<bool> g_stop{false};
-extern "C" void OnSigint(int) { g_stop.store(true); }
+extern "C" void OnStopSignal(int) { g_stop.store(true); }
 
 // Progress with frames per second, springs and their mean length: a bar on a
 // terminal, a line every 10 % or 10 s in a log (core/progress.h).
@@ -171,18 +171,25 @@ int RunRun(int argc, char** argv) {
   run.stop = &g_stop;
   run.save_every = save_every;
   g_stop.store(false);
-  struct sigaction action = {}, previous = {};
-  action.sa_handler = OnSigint;
+  // Ctrl-C, and SIGTERM (what kill and batch schedulers such as Slurm send at a time limit),
+  // stop after the current frame with complete records.
+  struct sigaction action = {}, previous_int = {}, previous_term = {};
+  action.sa_handler = OnStopSignal;
   sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, &previous);
+  sigaction(SIGINT, &action, &previous_int);
+  sigaction(SIGTERM, &action, &previous_term);
+  const auto restore = [&] {
+    sigaction(SIGINT, &previous_int, nullptr);
+    sigaction(SIGTERM, &previous_term, nullptr);
+  };
   pipeline::RunSummary s;
   try {
     s = pipe.Run(run);
   } catch (...) {
-    sigaction(SIGINT, &previous, nullptr);
+    restore();
     throw;
   }
-  sigaction(SIGINT, &previous, nullptr);
+  restore();
 
   const double fps = s.total_ms.Total() > 0 ? 1000.0 * s.frames / s.total_ms.Total() : 0.0;
   const double n = s.frames > 0 ? s.frames : 1;

@@ -1,6 +1,6 @@
 // Runs that survive faults (docs/reliability.md): `arreg run` killed with SIGKILL at random
-// moments leaves only complete files, and two runs of the same scene give the same records and
-// byte-identical meshes.
+// moments leaves only complete files, SIGTERM stops it with complete records, and two runs of the
+// same scene give the same records and byte-identical meshes.
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -177,6 +177,35 @@ TEST_F(RunFaults, KilledAtRandomMomentsLeavesOnlyCompleteFiles) {
     }
   }
   EXPECT_GE(killed_running, 5) << "most kills should land while the run is working";
+}
+
+// SIGTERM (kill's default, a batch scheduler's time limit) stops the run after the current frame
+// with complete records that `arreg eval` evaluates as an interrupted run.
+TEST_F(RunFaults, TerminatedRunKeepsCompleteRecordsThatEvalReads) {
+  const std::string out = kDir + "/term";
+  fs::remove_all(out);
+  const pid_t pid = Spawn(RunArgs(out), out + ".log");
+  // Once a few frames are recorded (the first surfaces saved), ask it to stop.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (!fs::exists(out + "/surface/000010.obj") && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  ASSERT_EQ(kill(pid, SIGTERM), 0);
+  const int rc = Wait(pid);
+  const nlohmann::json run = nlohmann::json::parse(arreg::ReadFileToString(out + "/run.json"));
+  const int frames = run.at("frames").get<int>();
+  if (run.at("interrupted").get<bool>()) {
+    EXPECT_EQ(rc, 130);
+    EXPECT_LT(frames, 50);
+  } else {
+    EXPECT_EQ(rc, 0);  // the signal came after the last frame
+  }
+  EXPECT_EQ(RecordsWithoutTimings(out + "/frames.jsonl").size(), static_cast<size_t>(frames));
+  ExpectOnlyCompleteFiles(out);
+  EXPECT_EQ(RunArreg({"eval", "--run", out, "--gt", scene_ + "/gt", "--out", out + "-eval",
+                      "--no-colormaps", "--quiet"},
+                     out + "-eval.log"),
+            0)
+      << arreg::ReadFileToString(out + "-eval.log");
 }
 
 }  // namespace
