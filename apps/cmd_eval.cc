@@ -1,5 +1,6 @@
 // `arreg eval`: accuracy of a registration run against ground truth (Dice,
 // Hausdorff of surfaces and internal structures, feature error) as JSON/CSV/HTML.
+#include <cmath>
 #include <cstdio>
 #include <optional>
 #include <string>
@@ -16,8 +17,8 @@ namespace arreg::cli {
 namespace {
 
 void PrintSummary(const eval::RunEvaluation& r) {
-  std::printf("%s (%s): Dice final %.4f, mean %.4f\n", r.run_dir.c_str(), r.label.c_str(),
-              r.dice_final, r.dice_mean);
+  std::printf("%s (%s): Dice%s final %.4f, mean %.4f\n", r.run_dir.c_str(), r.label.c_str(),
+              r.thin.empty() ? "" : " (union silhouette)", r.dice_final, r.dice_mean);
   for (const auto& [name, h] :
        {std::pair{"surface", &r.surface}, std::pair{"internal", &r.internal}})
     if (*h)
@@ -26,6 +27,14 @@ void PrintSummary(const eval::RunEvaluation& r) {
           "symmetric %.3f mm\n",
           name, (*h)->mean_model_to_gt, (*h)->mean_gt_to_model, (*h)->max_model_to_gt,
           (*h)->max_gt_to_model, (*h)->max);
+  for (const eval::ThinSummary& t : r.thin) {
+    std::printf("  thin %s: Dice final %.4f, mean %.4f", t.name.c_str(), t.dice_final.value_or(NAN),
+                t.dice_mean.value_or(NAN));
+    if (t.hausdorff)
+      std::printf("; Hausdorff mean model->gt %.3f mm, gt->model %.3f mm, symmetric max %.3f mm",
+                  t.hausdorff->mean_model_to_gt, t.hausdorff->mean_gt_to_model, t.hausdorff->max);
+    std::printf("\n");
+  }
   if (r.feature_error_mean_mm)
     std::printf("  feature error mean %.3f mm, max %.3f mm\n", *r.feature_error_mean_mm,
                 r.feature_error_max_mm.value_or(0.0));
@@ -66,7 +75,8 @@ int RunEval(int argc, char** argv) {
   parser.AddFlag("quiet", &quiet, "no progress on stderr");
   parser.SetEpilog(
       "Writes REPORT/report.json (dice_final, dice_mean, hausdorff_surface, hausdorff_internal,\n"
-      "feature_error_mm, frames), REPORT/report.csv (one row per frame and run),\n"
+      "feature_error_mm, frames; thin_structures when the run has them),\n"
+      "REPORT/report.csv (one row per frame and run),\n"
       "REPORT/report.html (self-contained), REPORT/colormaps/*.obj|png and, with\n"
       "--overlap-images, REPORT/overlap/*.png. See docs/eval.md.");
   if (!parser.Parse(argc, argv)) return 0;

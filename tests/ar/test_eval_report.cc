@@ -17,6 +17,7 @@
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/json_reader.h"
+#include "core/mesh_io.h"
 #include "test_eval_fixtures.h"
 #include "test_util.h"
 
@@ -93,6 +94,9 @@ TEST(EvalReport, WritesJsonCsvHtmlAndColourMaps) {
   EXPECT_DOUBLE_EQ(report.at("frames")[1].at("dice").get<double>(), 0.75);
   EXPECT_TRUE(report.at("frames")[1].at("hausdorff_surface").is_null());
   EXPECT_FALSE(report.at("baseline").at("topology").get<bool>());
+  // A run without thin structures keeps its keys and columns.
+  EXPECT_FALSE(report.contains("thin_structures"));
+  EXPECT_FALSE(report.at("frames")[0].contains("thin"));
 
   std::istringstream csv(ReadFileToString((f.out / "report.csv").string()));
   std::string line;
@@ -245,6 +249,91 @@ TEST(EvalReport, FramesWithoutARunSurfaceAreSummarisedInOneWarning) {
   const std::string one = ::testing::internal::GetCapturedStderr();
   EXPECT_EQ(std::count(one.begin(), one.end(), '\n'), 1) << one;
   EXPECT_NE(one.find("no surface at frame 0 "), std::string::npos) << one;
+}
+
+// Thin structures (run.json `thin_structures`): two sheets, "a" identical to the truth and "b"
+// 10 mm farther from the camera than the true one at frame 1, beside the organ square.
+// Per structure: Dice 1 and Hausdorff 0 for "a"; Hausdorff exactly d (parallel sheets with
+// the same outline offset along their normal) for "b" at frame 1. The union silhouette of the
+// identical frame 0 has Dice 1 exactly (the mask is the union rasterised with the same camera).
+TEST(EvalReport, ThinStructuresGetUnionAndPerStructureFigures) {
+  const fs::path root = ::arreg::testing::ScratchDir("eval_report_thin");
+  const fs::path gt = root / "gt", run = root / "run", out = root / "report";
+  const PinholeCamera camera = TestCamera();
+  WriteText(gt / "meta.json", R"({"units": "mm", "frames": 2, "width": 160, "height": 120})");
+  const std::string organ = SquareObj(-10, -10, 100, 12);
+  const double d = 10.0;
+  for (int frame = 0; frame < 2; ++frame) {
+    const std::string gt_thin = SquareObj(3, -8, 100, 6, 0, "a") + SquareObj(-9, 4, 105, 5, 4, "b");
+    WriteText(gt / "thin" / (Name(frame) + ".obj"), gt_thin);
+    WriteText(gt / "surface" / (Name(frame) + ".obj"), organ);
+    cv::Mat mask = RenderSilhouette(
+        camera, ReadSurfaceMesh((gt / "surface" / (Name(frame) + ".obj")).string()));
+    for (const auto& [name, mesh] : ReadObjObjects((gt / "thin" / (Name(frame) + ".obj")).string()))
+      cv::bitwise_or(mask, RenderSilhouette(camera, mesh), mask);
+    fs::create_directories(gt / "masks");
+    ASSERT_TRUE(cv::imwrite((gt / "masks" / (Name(frame) + ".png")).string(), mask));
+    WriteText(run / "surface" / (Name(frame) + ".obj"), organ);
+    // The run's file lists the objects in another order than run.json (matched by name).
+    WriteText(run / "thin" / (Name(frame) + ".obj"),
+              SquareObj(-9, 4, 105 + (frame == 1 ? d : 0.0), 5, 0, "b") +
+                  SquareObj(3, -8, 100, 6, 4, "a"));
+  }
+  nlohmann::json j;
+  j["camera"] = CameraToJson(camera);
+  j["frames"] = 2;
+  j["thin_structures"] = {"a", "b"};
+  WriteText(run / "run.json", j.dump(2));
+  WriteText(run / "frames.jsonl", "{\"frame\": 0}\n{\"frame\": 1}\n");
+
+  const EvalOptions o = FastOptions();
+  const RunEvaluation ev = EvaluateRun(run.string(), gt.string(), o);
+  ASSERT_EQ(ev.thin.size(), 2u);
+  EXPECT_EQ(ev.thin[0].name, "a");
+  ASSERT_TRUE(ev.frames[0].dice && ev.frames[1].dice);
+  EXPECT_DOUBLE_EQ(*ev.frames[0].dice, 1.0);
+  EXPECT_LT(*ev.frames[1].dice, 1.0);
+  for (int frame = 0; frame < 2; ++frame) {
+    const ThinFrameFigures& a = ev.frames[frame].thin[0];
+    ASSERT_TRUE(a.dice && a.hausdorff);
+    EXPECT_DOUBLE_EQ(*a.dice, 1.0);
+    EXPECT_NEAR(a.hausdorff->max, 0.0, 1e-9);
+  }
+  const ThinFrameFigures& b1 = ev.frames[1].thin[1];
+  ASSERT_TRUE(b1.dice && b1.hausdorff);
+  EXPECT_LT(*b1.dice, 1.0);  // farther: a smaller silhouette
+  EXPECT_GT(*b1.dice, 0.7);
+  EXPECT_NEAR(b1.hausdorff->max, d, 1e-9);
+  EXPECT_NEAR(b1.hausdorff->mean_model_to_gt, d, 1e-9);
+  EXPECT_NEAR(b1.hausdorff->mean_gt_to_model, d, 1e-9);
+  ASSERT_TRUE(ev.thin[1].hausdorff && ev.thin[1].dice_mean);
+  EXPECT_NEAR(ev.thin[1].hausdorff->max, d, 1e-9);
+  EXPECT_NEAR(ev.thin[1].hausdorff->mean_model_to_gt, d / 2, 1e-9);  // 0 and d over two frames
+  EXPECT_DOUBLE_EQ(*ev.thin[1].dice_final, *b1.dice);
+  EXPECT_DOUBLE_EQ(*ev.thin[1].dice_mean, (1.0 + *b1.dice) / 2);
+
+  WriteEvalReport(out.string(), gt.string(), ev, nullptr, o);
+  const nlohmann::json report = ParseJsonFile((out / "report.json").string());
+  ASSERT_EQ(report.at("thin_structures").size(), 2u);
+  EXPECT_EQ(report.at("thin_structures")[1].at("name"), "b");
+  EXPECT_NEAR(report.at("thin_structures")[1].at("hausdorff").at("max").get<double>(), d, 1e-9);
+  EXPECT_DOUBLE_EQ(report.at("frames")[0].at("thin").at("a").at("dice").get<double>(), 1.0);
+  const std::string csv = ReadFileToString((out / "report.csv").string());
+  EXPECT_NE(csv.find(",thin_a_dice,"), std::string::npos);
+  EXPECT_NE(csv.find(",thin_b_hausdorff_max"), std::string::npos);
+  const std::string html = ReadFileToString((out / "report.html").string());
+  EXPECT_NE(html.find("id=\"thin-structures\""), std::string::npos);
+  EXPECT_NE(html.find("id=\"plot-thin-dice\""), std::string::npos);
+
+  // A structure run.json lists but the OBJ lacks: one error naming the file and the object.
+  WriteText(run / "thin" / (Name(1) + ".obj"), SquareObj(3, -8, 100, 6, 0, "a"));
+  try {
+    EvaluateRun(run.string(), gt.string(), o);
+    FAIL() << "missing object accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("thin/000001.obj"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("o b"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -112,6 +112,7 @@ struct RunInfo {
   int frames = 0;
   bool topology = true;
   bool interrupted = false;
+  std::vector<std::string> thin_structures;  // run.json `thin_structures`, empty when absent
 };
 
 RunInfo ReadRunJson(const std::string& run_dir) {
@@ -131,6 +132,20 @@ RunInfo ReadRunJson(const std::string& run_dir) {
     ReadJsonValue(root.at("topology"), path, "topology", &info.topology);
   if (root.contains("interrupted") && !root.at("interrupted").is_null())
     ReadJsonValue(root.at("interrupted"), path, "interrupted", &info.interrupted);
+  if (root.contains("thin_structures") && !root.at("thin_structures").is_null()) {
+    const nlohmann::json& names = root.at("thin_structures");
+    ARREG_CHECK_INPUT(names.is_array(), path, "thin_structures", "expected an array of names");
+    for (size_t i = 0; i < names.size(); ++i) {
+      const std::string key = "thin_structures[" + std::to_string(i) + "]";
+      ARREG_CHECK_INPUT(names[i].is_string() && !names[i].get<std::string>().empty(), path, key,
+                        "expected a non-empty name");
+      const std::string name = names[i].get<std::string>();
+      ARREG_CHECK_INPUT(std::find(info.thin_structures.begin(), info.thin_structures.end(), name) ==
+                            info.thin_structures.end(),
+                        path, key, "duplicate name '", name, "'");
+      info.thin_structures.push_back(name);
+    }
+  }
   return info;
 }
 
@@ -173,7 +188,98 @@ void ReadFramesJsonl(const std::string& run_dir, int num_frames,
                     " frame records but run.json says frames = ", num_frames);
 }
 
+// The objects `names` of the OBJ at `path`, in that order; throws naming the file and the
+// first missing object.
+std::vector<SurfaceMesh> ReadThinObjects(const std::string& path,
+                                         const std::vector<std::string>& names) {
+  ARREG_CHECK_INPUT(FileExists(path), path, "", "thin-structure surfaces are missing");
+  const std::vector<std::pair<std::string, SurfaceMesh>> objects = ReadObjObjects(path);
+  std::vector<SurfaceMesh> meshes;
+  for (const std::string& name : names) {
+    const auto it = std::find_if(objects.begin(), objects.end(),
+                                 [&](const auto& o) { return o.first == name; });
+    ARREG_CHECK_INPUT(it != objects.end(), path, "o " + name,
+                      "no object of this name (run.json lists it in thin_structures)");
+    ARREG_CHECK_INPUT(it->second.num_faces() > 0, path, "o " + name, "object has no triangles");
+    meshes.push_back(it->second);
+  }
+  return meshes;
+}
+
+std::optional<double> Mean(double sum, int count) {
+  return count > 0 ? std::optional(sum / count) : std::nullopt;
+}
+
 }  // namespace
+
+std::vector<std::pair<std::string, SurfaceMesh>> ReadObjObjects(const std::string& path) {
+  ARREG_CHECK_INPUT(FileExists(path), path, "", "file is missing");
+  std::istringstream in(ReadFileToString(path));
+  std::vector<Eigen::Vector3d> vertices;
+  // Faces per object over the file's vertex indices.
+  std::vector<std::pair<std::string, std::vector<Eigen::Vector3i>>> objects;
+  std::string line;
+  int line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    std::istringstream ls(line);
+    std::string tag;
+    if (!(ls >> tag) || tag[0] == '#') continue;
+    const std::string where = "line " + std::to_string(line_number);
+    if (tag == "o" || tag == "g") {
+      std::string name;
+      std::getline(ls >> std::ws, name);
+      while (!name.empty() && (name.back() == '\r' || name.back() == ' ')) name.pop_back();
+      objects.emplace_back(name, std::vector<Eigen::Vector3i>());
+    } else if (tag == "v") {
+      Eigen::Vector3d p;
+      ARREG_CHECK_INPUT(static_cast<bool>(ls >> p.x() >> p.y() >> p.z()) && p.allFinite(), path,
+                        where, "expected `v x y z` with finite numbers");
+      vertices.push_back(p);
+    } else if (tag == "f") {
+      std::vector<int> corners;
+      std::string token;
+      while (ls >> token) {
+        int index = 0;
+        try {
+          index = std::stoi(token.substr(0, token.find('/')));
+        } catch (const std::exception&) {
+          throw Error(path, where, "bad face index '" + token + "'");
+        }
+        if (index < 0) index += static_cast<int>(vertices.size()) + 1;
+        ARREG_CHECK_INPUT(index >= 1 && index <= static_cast<int>(vertices.size()), path, where,
+                          "face index ", token, " out of range (", vertices.size(),
+                          " vertices so far)");
+        corners.push_back(index - 1);
+      }
+      ARREG_CHECK_INPUT(corners.size() >= 3, path, where, "a face needs at least 3 vertices");
+      if (objects.empty()) objects.emplace_back("", std::vector<Eigen::Vector3i>());
+      for (size_t k = 1; k + 1 < corners.size(); ++k)  // polygons as fans
+        objects.back().second.emplace_back(corners[0], corners[k], corners[k + 1]);
+    }
+  }
+  std::vector<std::pair<std::string, SurfaceMesh>> result;
+  for (const auto& [name, faces] : objects) {
+    std::vector<int> local(vertices.size(), -1);
+    SurfaceMesh mesh;
+    std::vector<Eigen::Vector3d> used;
+    mesh.faces.resize(static_cast<Eigen::Index>(faces.size()), 3);
+    for (size_t f = 0; f < faces.size(); ++f)
+      for (int c = 0; c < 3; ++c) {
+        int& id = local[faces[f][c]];
+        if (id < 0) {
+          id = static_cast<int>(used.size());
+          used.push_back(vertices[faces[f][c]]);
+        }
+        mesh.faces(static_cast<Eigen::Index>(f), c) = id;
+      }
+    mesh.vertices.resize(static_cast<Eigen::Index>(used.size()), 3);
+    for (size_t v = 0; v < used.size(); ++v)
+      mesh.vertices.row(static_cast<Eigen::Index>(v)) = used[v].transpose();
+    result.emplace_back(name, std::move(mesh));
+  }
+  return result;
+}
 
 RunEvaluation EvaluateRun(const std::string& run_dir, const std::string& gt_dir,
                           const EvalOptions& options) {
@@ -217,16 +323,30 @@ RunEvaluation EvaluateRun(const std::string& run_dir, const std::string& gt_dir,
   for (int f = 0; f < info.frames; ++f) ev.frames[f].frame = f;
   ReadFramesJsonl(run_dir, info.frames, &ev.frames);
 
+  const std::vector<std::string>& thin_names = info.thin_structures;
+  const bool has_thin = !thin_names.empty();
+  ev.thin.resize(thin_names.size());
+  for (size_t k = 0; k < thin_names.size(); ++k) ev.thin[k].name = thin_names[k];
+  // Evaluated frames: those with a saved organ surface and, with thin structures, those with
+  // thin/NNNNNN.obj (a scene of thin structures only saves no organ surface).
   std::vector<int> surface_frames;
   for (int f : ListFrames(run_dir, "surface", ".obj"))
     if (f < info.frames) surface_frames.push_back(f);
-  ARREG_CHECK_INPUT(!surface_frames.empty(), (fs::path(run_dir) / "surface").string(), "",
-                    "the run saved no surface/NNNNNN.obj within its ", info.frames, " frames");
+  std::vector<int> eval_frames = surface_frames;
+  if (has_thin) {
+    for (int f : ListFrames(run_dir, "thin", ".obj"))
+      if (f < info.frames) eval_frames.push_back(f);
+    std::sort(eval_frames.begin(), eval_frames.end());
+    eval_frames.erase(std::unique(eval_frames.begin(), eval_frames.end()), eval_frames.end());
+  }
+  ARREG_CHECK_INPUT(!eval_frames.empty(), (fs::path(run_dir) / "surface").string(), "",
+                    "the run saved no surface/NNNNNN.obj", has_thin ? " or thin/NNNNNN.obj" : "",
+                    " within its ", info.frames, " frames");
   // One line for all such frames: a run saved with a coarser --save-every than
   // the truth misses most of them.
   std::vector<int> missing;
   for (int f : ListFrames(gt_dir, "surface", ".obj"))
-    if (f < info.frames && !std::binary_search(surface_frames.begin(), surface_frames.end(), f))
+    if (f < info.frames && !std::binary_search(eval_frames.begin(), eval_frames.end(), f))
       missing.push_back(f);
   if (missing.size() == 1)
     ARREG_LOG_WARNING(run_dir, ": no surface at frame ", missing.front(),
@@ -238,14 +358,40 @@ RunEvaluation EvaluateRun(const std::string& run_dir, const std::string& gt_dir,
 
   int last_gt_surface_frame = -1;
   double dice_sum = 0.0;
-  for (size_t i = 0; i < surface_frames.size(); ++i) {
+  std::vector<double> thin_dice_sum(thin_names.size(), 0.0);
+  std::vector<int> thin_dice_count(thin_names.size(), 0);
+  for (size_t i = 0; i < eval_frames.size(); ++i) {
     if (options.progress && i > 0)
-      options.progress(static_cast<int>(i), static_cast<int>(surface_frames.size()));
-    const int f = surface_frames[i];
+      options.progress(static_cast<int>(i), static_cast<int>(eval_frames.size()));
+    const int f = eval_frames[i];
     FrameEvaluation& fe = ev.frames[f];
-    const SurfaceMesh model = ReadMesh(FramePath(run_dir, "surface", f, ".obj"));
+    const std::string run_surface = FramePath(run_dir, "surface", f, ".obj");
+    std::optional<SurfaceMesh> model;
+    if (FileExists(run_surface)) model = ReadMesh(run_surface);
     const cv::Mat truth = ReadMask(FramePath(gt_dir, "masks", f, ".png"), info.camera);
-    const cv::Mat silhouette = RenderSilhouette(info.camera, model);
+    cv::Mat silhouette = model ? RenderSilhouette(info.camera, *model)
+                               : cv::Mat(cv::Mat::zeros(truth.size(), CV_8U));
+    if (has_thin) {
+      // The union silhouette: the masks of a scene with thin structures hold all of them.
+      const std::vector<SurfaceMesh> run_thin =
+          ReadThinObjects(FramePath(run_dir, "thin", f, ".obj"), thin_names);
+      std::vector<SurfaceMesh> gt_thin;
+      const std::string gt_thin_path = FramePath(gt_dir, "thin", f, ".obj");
+      if (FileExists(gt_thin_path)) gt_thin = ReadThinObjects(gt_thin_path, thin_names);
+      fe.thin.resize(thin_names.size());
+      for (size_t k = 0; k < thin_names.size(); ++k) {
+        const cv::Mat own = RenderSilhouette(info.camera, run_thin[k]);
+        cv::bitwise_or(silhouette, own, silhouette);
+        if (gt_thin.empty()) continue;
+        const double dice = ComputeDice(own, RenderSilhouette(info.camera, gt_thin[k])).dice;
+        fe.thin[k].dice = dice;
+        fe.thin[k].hausdorff =
+            Figures(ComputeHausdorff(run_thin[k], gt_thin[k], options.hausdorff));
+        thin_dice_sum[k] += dice;
+        ++thin_dice_count[k];
+        ev.thin[k].dice_final = dice;
+      }
+    }
     fe.dice = ComputeDice(silhouette, truth).dice;
     if (options.overlap_images) {
       std::vector<unsigned char> png;
@@ -257,8 +403,8 @@ RunEvaluation EvaluateRun(const std::string& run_dir, const std::string& gt_dir,
     ev.dice_final = *fe.dice;
 
     const std::string gt_surface = FramePath(gt_dir, "surface", f, ".obj");
-    if (!FileExists(gt_surface)) continue;
-    fe.surface = Figures(ComputeHausdorff(model, ReadMesh(gt_surface), options.hausdorff));
+    if (!model || !FileExists(gt_surface)) continue;
+    fe.surface = Figures(ComputeHausdorff(*model, ReadMesh(gt_surface), options.hausdorff));
     last_gt_surface_frame = f;
     const std::string gt_internal = FramePath(gt_dir, "internal", f, ".obj");
     const std::string run_internal = FramePath(run_dir, "internal", f, ".obj");
@@ -267,9 +413,18 @@ RunEvaluation EvaluateRun(const std::string& run_dir, const std::string& gt_dir,
           ComputeHausdorff(ReadMesh(run_internal), ReadMesh(gt_internal), options.hausdorff));
   }
   if (options.progress)
-    options.progress(static_cast<int>(surface_frames.size()),
-                     static_cast<int>(surface_frames.size()));
-  ev.dice_mean = dice_sum / surface_frames.size();
+    options.progress(static_cast<int>(eval_frames.size()), static_cast<int>(eval_frames.size()));
+  for (size_t k = 0; k < thin_names.size(); ++k) {
+    ev.thin[k].dice_mean = Mean(thin_dice_sum[k], thin_dice_count[k]);
+    std::vector<FrameEvaluation> per_structure;  // Aggregate reads FrameEvaluation::surface
+    for (const FrameEvaluation& fe : ev.frames) {
+      if (fe.thin.size() <= k || !fe.thin[k].hausdorff) continue;
+      per_structure.emplace_back();
+      per_structure.back().surface = fe.thin[k].hausdorff;
+    }
+    ev.thin[k].hausdorff = Aggregate(per_structure, &FrameEvaluation::surface);
+  }
+  ev.dice_mean = dice_sum / eval_frames.size();
   ev.surface = Aggregate(ev.frames, &FrameEvaluation::surface);
   ev.internal = Aggregate(ev.frames, &FrameEvaluation::internal);
 

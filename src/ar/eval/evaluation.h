@@ -40,9 +40,26 @@ struct HausdorffFigures {
   double max = 0.0;  // symmetric: max of the two directed maxima
 };
 
+// Figures of one thin structure (run.json `thin_structures`) at one frame: the Dice of its own
+// silhouette (run's thin/<name> against gt/thin/<name>, both rasterised with the run camera)
+// and the Hausdorff figures of its surface; absent where the ground truth has no thin/ file.
+struct ThinFrameFigures {
+  std::optional<double> dice;
+  std::optional<HausdorffFigures> hausdorff;
+};
+
+// Over the evaluated frames of one thin structure: Dice at the last frame with one and mean,
+// Hausdorff aggregated like the surface's.
+struct ThinSummary {
+  std::string name;
+  std::optional<double> dice_final, dice_mean;
+  std::optional<HausdorffFigures> hausdorff;
+};
+
 struct FrameEvaluation {
   int frame = 0;
-  // Present at the frames where the run saved its surface (surface/NNNNNN.obj).
+  // Present at the frames where the run saved its surface (surface/NNNNNN.obj) or, with thin
+  // structures, thin/NNNNNN.obj: then the Dice of the union silhouette (organ and thin structures).
   std::optional<double> dice;
   // Present where both the run and the ground truth have the surface / internal structures.
   std::optional<HausdorffFigures> surface;
@@ -50,6 +67,9 @@ struct FrameEvaluation {
   // From frames.jsonl; absent when the run logged null (no alive springs).
   std::optional<double> feature_error_mean_mm;
   std::optional<double> feature_error_max_mm;
+  // One entry per thin structure of the run (same order as RunEvaluation::thin), at frames with a
+  // Dice; empty without thin structures.
+  std::vector<ThinFrameFigures> thin;
 };
 
 // A mesh with per-vertex distances to the other surface, for the colour maps.
@@ -79,11 +99,19 @@ struct RunEvaluation {
   std::optional<double> feature_error_mean_mm;
   std::optional<double> feature_error_max_mm;
 
+  // One per name in run.json `thin_structures` (empty without): per-structure Dice and Hausdorff.
+  std::vector<ThinSummary> thin;
+
   std::vector<FrameEvaluation> frames;         // one per processed frame, in order
   std::vector<DistanceField> distance_fields;  // colour maps at the last frame with a GT surface
   // With EvalOptions::overlap_images: (frame, PNG bytes of OverlapImage) per frame with a Dice.
   std::vector<std::pair<int, std::vector<unsigned char>>> overlap_pngs;
 };
+
+// The objects of an OBJ file (`o name` groups; vertices before the first `o` belong to an object
+// named ""), each with its own compact vertex list, in file order. Throws arreg::Error naming the
+// file and line on malformed lines or out-of-range indices.
+std::vector<std::pair<std::string, SurfaceMesh>> ReadObjObjects(const std::string& path);
 
 // Reads everything, checks consistency and computes the metrics. Throws
 // arreg::Error naming the file for a missing run.json / frames.jsonl /

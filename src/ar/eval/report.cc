@@ -98,20 +98,29 @@ std::vector<ColorMapImage> WriteColorMaps(const std::string& out_dir, const std:
   return images;
 }
 
-void WriteCsvRows(std::ostream& os, const std::string& name, const RunEvaluation& run) {
+// The five figures of `h` (mean model->gt, mean gt->model, the directed maxima, the symmetric
+// maximum), each absent when `h` is.
+std::vector<std::optional<double>> FigureList(const std::optional<HausdorffFigures>& h) {
+  if (!h) return std::vector<std::optional<double>>(5);
+  return {h->mean_model_to_gt, h->mean_gt_to_model, h->max_model_to_gt, h->max_gt_to_model, h->max};
+}
+
+// `thin_names`: the thin structures whose columns the file has (those of the first run).
+void WriteCsvRows(std::ostream& os, const std::string& name, const RunEvaluation& run,
+                  const std::vector<std::string>& thin_names) {
   for (const FrameEvaluation& f : run.frames) {
     os << name << ',' << f.frame << ',' << Number(f.dice, 8);
-    for (const auto* h : {&f.surface, &f.internal}) {
-      const auto& v = *h;
-      for (const std::optional<double>& x : {v ? std::optional(v->mean_model_to_gt) : std::nullopt,
-                                             v ? std::optional(v->mean_gt_to_model) : std::nullopt,
-                                             v ? std::optional(v->max_model_to_gt) : std::nullopt,
-                                             v ? std::optional(v->max_gt_to_model) : std::nullopt,
-                                             v ? std::optional(v->max) : std::nullopt})
-        os << ',' << Number(x, 8);
+    for (const auto* h : {&f.surface, &f.internal})
+      for (const std::optional<double>& x : FigureList(*h)) os << ',' << Number(x, 8);
+    os << ',' << Number(f.feature_error_mean_mm, 8) << ',' << Number(f.feature_error_max_mm, 8);
+    for (const std::string& thin_name : thin_names) {
+      ThinFrameFigures t;
+      for (size_t k = 0; k < run.thin.size() && k < f.thin.size(); ++k)
+        if (run.thin[k].name == thin_name) t = f.thin[k];
+      os << ',' << Number(t.dice, 8);
+      for (const std::optional<double>& x : FigureList(t.hausdorff)) os << ',' << Number(x, 8);
     }
-    os << ',' << Number(f.feature_error_mean_mm, 8) << ',' << Number(f.feature_error_max_mm, 8)
-       << '\n';
+    os << '\n';
   }
 }
 
@@ -131,15 +140,8 @@ std::string NumbersRow(const RunEvaluation& run) {
   std::ostringstream os;
   os << "<tr><th scope=\"row\">" << HtmlEscape(run.label) << "</th><td>" << Fixed(run.dice_final, 4)
      << "</td><td>" << Fixed(run.dice_mean, 4) << "</td>";
-  for (const auto* h : {&run.surface, &run.internal}) {
-    const auto& v = *h;
-    for (const std::optional<double>& x : {v ? std::optional(v->mean_model_to_gt) : std::nullopt,
-                                           v ? std::optional(v->mean_gt_to_model) : std::nullopt,
-                                           v ? std::optional(v->max_model_to_gt) : std::nullopt,
-                                           v ? std::optional(v->max_gt_to_model) : std::nullopt,
-                                           v ? std::optional(v->max) : std::nullopt})
-      os << "<td>" << Fixed(x, 3) << "</td>";
-  }
+  for (const auto* h : {&run.surface, &run.internal})
+    for (const std::optional<double>& x : FigureList(*h)) os << "<td>" << Fixed(x, 3) << "</td>";
   os << "<td>" << Fixed(run.feature_error_mean_mm, 3) << "</td><td>"
      << Fixed(run.feature_error_max_mm, 3) << "</td></tr>\n";
   return os.str();
@@ -183,6 +185,26 @@ std::string BuildHtml(const std::string& gt_dir, const RunEvaluation& run,
   os << "<th>mean</th><th>max</th></tr>\n";
   for (const RunEvaluation* r : runs) os << NumbersRow(*r);
   os << "</table>\n";
+  if (!run.thin.empty()) {
+    os << "<h2>Thin structures</h2>\n<p class=\"meta\">Dice above is that of the union "
+          "silhouette (organ and thin structures); here each structure's own silhouette against "
+          "its true one, and the Hausdorff figures of its surface.</p>\n<table "
+          "id=\"thin-structures\">\n<tr><th rowspan=\"2\">run</th><th "
+          "rowspan=\"2\">structure</th><th colspan=\"2\">Dice</th><th colspan=\"5\">Hausdorff "
+          "(mm)</th></tr>\n<tr><th>final</th><th>mean</th><th>mean model&rarr;gt</th><th>mean "
+          "gt&rarr;model</th><th>max model&rarr;gt</th><th>max "
+          "gt&rarr;model</th><th>max</th></tr>\n";
+    for (const RunEvaluation* r : runs)
+      for (const ThinSummary& t : r->thin) {
+        os << "<tr><th scope=\"row\">" << HtmlEscape(r->label) << "</th><td>" << HtmlEscape(t.name)
+           << "</td><td>" << Fixed(t.dice_final, 4) << "</td><td>" << Fixed(t.dice_mean, 4)
+           << "</td>";
+        for (const std::optional<double>& x : FigureList(t.hausdorff))
+          os << "<td>" << Fixed(x, 3) << "</td>";
+        os << "</tr>\n";
+      }
+    os << "</table>\n";
+  }
 
   std::vector<PlotSeries> dice, surface, internal, feature;
   for (size_t i = 0; i < runs.size(); ++i) {
@@ -211,6 +233,30 @@ std::string BuildHtml(const std::string& gt_dir, const RunEvaluation& run,
   }
   os << "<h2>Dice over time</h2>\n"
      << SvgLinePlot("plot-dice", "Dice coefficient per frame", "frame", "Dice", dice, 0.0, 1.0);
+  if (!run.thin.empty()) {
+    std::vector<PlotSeries> thin_dice, thin_distance;
+    for (size_t i = 0; i < runs.size(); ++i)
+      for (size_t k = 0; k < runs[i]->thin.size(); ++k) {
+        const std::string name = runs[i]->label + ", " + runs[i]->thin[k].name;
+        const bool dashed = k % 2 == 1;
+        thin_dice.push_back(
+            Series(name, colors[i], dashed, *runs[i], [k](const FrameEvaluation& f) {
+              return k < f.thin.size() ? f.thin[k].dice : std::nullopt;
+            }));
+        thin_distance.push_back(Series(
+            name + ", mean symmetric", colors[i], dashed, *runs[i], [k](const FrameEvaluation& f) {
+              if (k >= f.thin.size() || !f.thin[k].hausdorff) return std::optional<double>();
+              const HausdorffFigures& h = *f.thin[k].hausdorff;
+              return std::optional(0.5 * (h.mean_model_to_gt + h.mean_gt_to_model));
+            }));
+      }
+    os << "<h2>Thin structures over time</h2>\n"
+       << SvgLinePlot("plot-thin-dice", "Dice of each thin structure's silhouette", "frame", "Dice",
+                      thin_dice, 0.0, 1.0)
+       << SvgLinePlot("plot-thin-hausdorff",
+                      "Mean surface distance of each thin structure (average of both directions)",
+                      "frame", "mm", thin_distance);
+  }
   const auto has_points = [](const std::vector<PlotSeries>& series) {
     return std::any_of(series.begin(), series.end(),
                        [](const PlotSeries& s) { return !s.points.empty(); });
@@ -254,14 +300,35 @@ nlohmann::json EvaluationToJson(const RunEvaluation& ev) {
   j["hausdorff_internal"] = FiguresToJson(ev.internal);
   j["feature_error_mm"] = {{"mean", OptionalNumber(ev.feature_error_mean_mm)},
                            {"max", OptionalNumber(ev.feature_error_max_mm)}};
+  if (!ev.thin.empty()) {  // only for runs with thin structures (others keep their keys)
+    nlohmann::json thin = nlohmann::json::array();
+    for (const ThinSummary& t : ev.thin)
+      thin.push_back({{"name", t.name},
+                      {"dice_final", OptionalNumber(t.dice_final)},
+                      {"dice_mean", OptionalNumber(t.dice_mean)},
+                      {"hausdorff", FiguresToJson(t.hausdorff)}});
+    j["thin_structures"] = std::move(thin);
+  }
   nlohmann::json frames = nlohmann::json::array();
-  for (const FrameEvaluation& f : ev.frames)
-    frames.push_back({{"frame", f.frame},
-                      {"dice", OptionalNumber(f.dice)},
-                      {"hausdorff_surface", FiguresToJson(f.surface)},
-                      {"hausdorff_internal", FiguresToJson(f.internal)},
-                      {"feature_error_mean_mm", OptionalNumber(f.feature_error_mean_mm)},
-                      {"feature_error_max_mm", OptionalNumber(f.feature_error_max_mm)}});
+  for (const FrameEvaluation& f : ev.frames) {
+    nlohmann::json frame = {{"frame", f.frame},
+                            {"dice", OptionalNumber(f.dice)},
+                            {"hausdorff_surface", FiguresToJson(f.surface)},
+                            {"hausdorff_internal", FiguresToJson(f.internal)},
+                            {"feature_error_mean_mm", OptionalNumber(f.feature_error_mean_mm)},
+                            {"feature_error_max_mm", OptionalNumber(f.feature_error_max_mm)}};
+    if (!ev.thin.empty()) {
+      nlohmann::json thin = nlohmann::json::object();
+      for (size_t k = 0; k < ev.thin.size(); ++k) {
+        const ThinFrameFigures none;
+        const ThinFrameFigures& t = k < f.thin.size() ? f.thin[k] : none;
+        thin[ev.thin[k].name] = {{"dice", OptionalNumber(t.dice)},
+                                 {"hausdorff", FiguresToJson(t.hausdorff)}};
+      }
+      frame["thin"] = std::move(thin);
+    }
+    frames.push_back(std::move(frame));
+  }
   j["frames"] = std::move(frames);
   return j;
 }
@@ -320,9 +387,18 @@ void WriteEvalReport(const std::string& out_dir, const std::string& gt_dir,
       for (const char* part :
            {"mean_model_to_gt", "mean_gt_to_model", "max_model_to_gt", "max_gt_to_model", "max"})
         os << ",hausdorff_" << kind << '_' << part;
-    os << ",feature_error_mean_mm,feature_error_max_mm\n";
-    WriteCsvRows(os, "run", run);
-    if (baseline) WriteCsvRows(os, "baseline", *baseline);
+    os << ",feature_error_mean_mm,feature_error_max_mm";
+    std::vector<std::string> thin_names;
+    for (const ThinSummary& t : run.thin) {
+      thin_names.push_back(t.name);
+      os << ",thin_" << t.name << "_dice";
+      for (const char* part :
+           {"mean_model_to_gt", "mean_gt_to_model", "max_model_to_gt", "max_gt_to_model", "max"})
+        os << ",thin_" << t.name << "_hausdorff_" << part;
+    }
+    os << '\n';
+    WriteCsvRows(os, "run", run, thin_names);
+    if (baseline) WriteCsvRows(os, "baseline", *baseline, thin_names);
   });
 
   const std::string html = BuildHtml(gt_dir, run, baseline, options, images);
