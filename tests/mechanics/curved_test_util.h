@@ -24,7 +24,8 @@ inline Eigen::Vector3d OntoSphere(const Eigen::Vector3d& x) { return kRadius * x
 // shells of prisms (each split into 3 tets by the global vertex order, so neighbours
 // match) around a core of tets to the centre. Every boundary tet has one boundary face,
 // edge length about 1.1 kRadius / 2^level; vertices of the outer shell on the sphere.
-inline TetMesh LinearBall(int level) {
+// inner_radius > 0: a hollow sphere instead, 2^level shells from inner_radius to kRadius.
+inline TetMesh LinearBall(int level, double inner_radius = 0) {
   std::vector<Eigen::Vector3d> v;
   const double t = (1 + std::sqrt(5.0)) / 2;
   for (double a : {-1.0, 1.0})
@@ -63,18 +64,23 @@ inline TetMesh LinearBall(int level) {
     faces = std::move(finer);
   }
   const int per_shell = static_cast<int>(v.size()), shells = 1 << level;
+  const bool hollow = inner_radius > 0;
+  const int layers = hollow ? shells + 1 : shells;
   TetMesh ball;
-  ball.vertices.resize(per_shell * shells + 1, 3);
-  for (int s = 0; s < shells; ++s)
+  ball.vertices.resize(per_shell * layers + (hollow ? 0 : 1), 3);
+  for (int s = 0; s < layers; ++s) {
+    const double r =
+        hollow ? inner_radius + (kRadius - inner_radius) * s / shells : kRadius * (s + 1) / shells;
     for (int i = 0; i < per_shell; ++i)
-      ball.vertices.row(s * per_shell + i) = (kRadius * (s + 1) / shells * v[i]).transpose();
-  const int centre = per_shell * shells;
-  ball.vertices.row(centre).setZero();
+      ball.vertices.row(s * per_shell + i) = (r * v[i]).transpose();
+  }
+  const int centre = per_shell * layers;
+  if (!hollow) ball.vertices.row(centre).setZero();
   std::vector<Eigen::Vector4i> tets;
   for (auto f : faces) {
     std::sort(f.begin(), f.end());
-    tets.emplace_back(centre, f[0], f[1], f[2]);
-    for (int s = 1; s < shells; ++s) {
+    if (!hollow) tets.emplace_back(centre, f[0], f[1], f[2]);
+    for (int s = 1; s < layers; ++s) {
       const int lo = (s - 1) * per_shell, hi = s * per_shell;
       const int a = lo + f[0], b = lo + f[1], c = lo + f[2];
       const int a1 = hi + f[0], b1 = hi + f[1], c1 = hi + f[2];
