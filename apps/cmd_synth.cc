@@ -25,7 +25,9 @@ int RunSynth(int argc, char** argv) {
   parser.AddFlag("list", &list, "describe the scenarios and exit");
   parser.AddString("scenario", &o.scenario, "NAME", "scenario to generate (see --list)");
   parser.AddString("out", &o.out_dir, "DIR", "output folder (created)");
-  parser.AddInt("seed", &seed, "N", "seed of texture, sensor noise and occluder (>= 0)");
+  parser.AddInt("seed", &seed, "N",
+                "seed of texture, sensor noise and occluder; membrane sizes, pull and cut, vessel "
+                "branch ends (>= 0)");
   parser.AddInt("frames", &o.frames, "N", "number of frames");
   parser.AddString("size", &size, "WxH", "image size in pixels (even numbers)");
   parser.AddDouble("fps", &o.fps, "HZ", "video frame rate");
@@ -36,7 +38,8 @@ int RunSynth(int argc, char** argv) {
                    "focal length relative to the scenario's 60-degree view, in [0.5, 4] (2: the "
                    "organ covers 4x the pixels, parts may leave the image)");
   parser.AddInt("gt-every", &o.surface_every_k, "K", "write gt surfaces every K-th frame");
-  parser.AddDouble("cell", &o.fine_cell_mm, "MM", "band truth mesh spacing in mm");
+  parser.AddDouble("cell", &o.fine_cell_mm, "MM",
+                   "band truth mesh spacing in mm (membranes: half of it in-plane)");
   parser.AddDouble("kidney-cell", &o.kidney_cell_mm, "MM", "kidney truth mesh size in mm");
   parser.AddDouble("noise", &o.noise_sigma, "SIGMA", "sensor noise, 8-bit grey levels");
   parser.AddDouble("blur", &o.blur_sigma_px, "PX", "Gaussian blur of the video in px (0: off)");
@@ -46,9 +49,10 @@ int RunSynth(int argc, char** argv) {
   parser.AddFlag("no-video", &no_video, "write the ground truth only (no rendering, no video)");
   parser.AddFlag("quiet", &quiet, "no progress on stderr");
   parser.SetEpilog(
-      "Writes in DIR: video.mp4, scene.json, model.vtk, internal.obj (kidney), gt/meta.json,\n"
-      "gt/masks/NNNNNN.png, gt/surface/NNNNNN.obj, gt/internal/NNNNNN.obj, gt/cut.json,\n"
-      "gt/cut_surface.obj. See docs/synth.md.");
+      "Writes in DIR: video.mp4, scene.json, model.vtk (not for membranes), internal.obj\n"
+      "(kidney), membrane.obj / vessel.obj (thin structures), gt/meta.json,\n"
+      "gt/masks/NNNNNN.png, gt/surface/NNNNNN.obj, gt/internal/NNNNNN.obj,\n"
+      "gt/thin/NNNNNN.obj, gt/cut.json, gt/cut_surface.obj. See docs/synth.md.");
   if (!parser.Parse(argc, argv)) return 0;
   if (list) {
     for (const auto& s : synth::ListScenarios())

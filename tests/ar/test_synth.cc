@@ -6,12 +6,14 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
 #include <set>
 #include <sstream>
 
+#include "ar/eval/evaluation.h"
 #include "ar/render/rasterizer.h"
 #include "ar/synth/generator.h"
 #include "ar/synth/neo_hookean.h"
@@ -21,6 +23,7 @@
 #include "ar/synth/tissue_texture.h"
 #include "core/error.h"
 #include "core/file_util.h"
+#include "core/json_reader.h"
 #include "core/mesh_io.h"
 #include "core/mesh_ops.h"
 #include "core/scene.h"
@@ -348,6 +351,146 @@ TEST(Generator, CutWhileFilmedOpensProgressively) {
   ASSERT_EQ(s.opening_mm.size(), 21u);
   for (int f = 0; f < s.cut_first_frame; ++f) EXPECT_EQ(s.opening_mm[f], 0.0) << "frame " << f;
   EXPECT_GT(s.opening_mm.back(), 60.0);
+}
+
+// The objects of an OBJ written with `o name` groups (gt/thin), by name.
+std::map<std::string, SurfaceMesh> ThinObjects(const std::string& path) {
+  std::map<std::string, SurfaceMesh> out;
+  for (auto& [name, mesh] : eval::ReadObjObjects(path)) out[name] = mesh;
+  return out;
+}
+
+// A tear's path: the notch up to its tip, then the crack in the given direction; the level set
+// vanishes on both, progress is the length along the path.
+TEST(Scenarios, TearPathFollowsTheNotchThenTheCrack) {
+  TearSpec tear;
+  tear.notch_mm = 8;
+  tear.notch_dir = Eigen::Vector3d::UnitY();
+  tear.notch_tip = Eigen::Vector3d(40, 8, 0);
+  tear.max_length_mm = 50;
+  const Eigen::Vector3d dir = Eigen::Vector3d(1, 2, 0).normalized();
+  const CutSurfaceSpec path = TearPath(tear, dir);
+  EXPECT_NEAR(path.level_set(Eigen::Vector3d(40, 3, 0.5)), 0, 1e-12);
+  EXPECT_NEAR(path.progress_mm(Eigen::Vector3d(40, 3, 0.5)), 3, 1e-12);
+  const Eigen::Vector3d on_crack = tear.notch_tip + 10 * dir;
+  EXPECT_NEAR(path.level_set(on_crack), 0, 1e-12);
+  EXPECT_NEAR(path.progress_mm(on_crack), 18, 1e-12);
+  EXPECT_TRUE(std::isinf(path.progress_mm(tear.notch_tip + 45 * dir)));  // beyond max length
+  // The two sides keep their sign across the tip (a continuous level set).
+  EXPECT_GT(
+      path.level_set(Eigen::Vector3d(45, 7.9, 0)) * path.level_set(Eigen::Vector3d(45, 8.1, 0)), 0);
+}
+
+// membrane-cut: a scene of one shell and no tet model; the truth's mid-surface is the sheet
+// (area L x W at rest), the mask its silhouette, and the scissor cut opens it while pulled.
+TEST(Generator, MembraneCutWritesAShellSceneAndTheTrueMidSurface) {
+  const std::string d = testing::ScratchDir("synth_membrane_cut");
+  SynthOptions o = SmallRun("membrane-cut", d);
+  o.write_video = false;
+  o.seed = 3;
+  const SynthSummary s = GenerateSyntheticScene(o);
+  EXPECT_EQ(s.unconverged_frames, 0);
+  EXPECT_EQ(s.model_tetrahedra, 0);
+  EXPECT_GE(s.cut_first_frame, 3);  // the scissors start at t = 0.3
+  EXPECT_GT(s.max_cut_opening_mm, 2.0);
+  const Scene scene = ReadScene(d + "/scene.json", {false});
+  EXPECT_TRUE(scene.model_mesh_path.empty());
+  ASSERT_EQ(scene.thin_structures.size(), 1u);
+  const ThinStructure& shell = scene.thin_structures[0];
+  EXPECT_EQ(shell.type, "shell");
+  EXPECT_GE(shell.thickness_mm, 1.0);
+  EXPECT_LE(shell.thickness_mm, 2.0);
+  const SurfaceMesh model = ReadSurfaceMesh(shell.mesh_path);
+  const double length = model.vertices.col(0).maxCoeff(), width = model.vertices.col(1).maxCoeff();
+  EXPECT_GE(length, 80);
+  EXPECT_LE(length, 100);
+  EXPECT_GE(width, 50);
+  EXPECT_LE(width, 70);
+  ASSERT_FALSE(shell.fixed_vertices.empty());
+  for (int v : shell.fixed_vertices)  // on the supports x = 0 and x = L
+    EXPECT_TRUE(model.vertices(v, 0) < 1e-9 || model.vertices(v, 0) > length - 1e-9) << v;
+  const auto rest = ThinObjects(d + "/gt/thin/000000.obj");
+  ASSERT_EQ(rest.count("membrane"), 1u);
+  // Snaps onto the cut move free-edge vertices slightly off the edge: the area within 0.1 %.
+  EXPECT_NEAR(SurfaceArea(rest.at("membrane")), length * width, 1e-3 * length * width);
+  for (int v = 0; v < rest.at("membrane").num_vertices(); ++v)
+    EXPECT_NEAR(rest.at("membrane").vertices(v, 2), shell.thickness_mm / 2, 1e-9);
+  // At the end the cut has split mid-surface vertices; the mask is the sheet's silhouette.
+  const auto last = ThinObjects(d + "/gt/thin/000010.obj");
+  EXPECT_GT(last.at("membrane").num_vertices(), rest.at("membrane").num_vertices());
+  const cv::Mat mask = cv::imread(d + "/gt/masks/000010.png", cv::IMREAD_UNCHANGED);
+  const cv::Mat sheet = render::RenderMask(render::ToRasterCamera(scene.camera),
+                                           last.at("membrane").vertices, last.at("membrane").faces);
+  // The slab's silhouette differs from its mid-surface's by its thickness at the rims only.
+  EXPECT_LT(cv::countNonZero(mask != sheet), 0.05 * cv::countNonZero(mask));
+}
+
+// membrane-tear: the notch is open from frame 0; the crack starts once the pull loads its tip
+// beyond the strength, runs roughly perpendicular to the pull (x), one step per frame at most.
+TEST(Generator, MembraneTearAdvancesFromTheNotchTip) {
+  const std::string d = testing::ScratchDir("synth_membrane_tear");
+  SynthOptions o = SmallRun("membrane-tear", d);
+  o.write_video = false;
+  o.frames = 21;
+  o.fine_cell_mm = 8;  // 4 mm truth cells in-plane: a quicker test, the same model
+  const SynthSummary s = GenerateSyntheticScene(o);
+  EXPECT_EQ(s.unconverged_frames, 0);
+  EXPECT_EQ(s.cut_first_frame, 0);
+  const nlohmann::json tear = ParseJsonFile(d + "/gt/cut.json").at("cut").at("tear");
+  const std::vector<double> advance = tear.at("advance_mm").get<std::vector<double>>();
+  const std::vector<double> stress = tear.at("tip_stress_pa").get<std::vector<double>>();
+  const double strength = tear.at("strength_pa").get<double>();
+  const double step = tear.at("step_mm").get<double>();
+  ASSERT_EQ(advance.size(), 21u);
+  EXPECT_DOUBLE_EQ(advance.front(), 8.0);  // at rest the notch does not grow
+  EXPECT_LT(stress.front(), strength);
+  EXPECT_GT(advance.back(), 8.0 + 3 * step);  // it tears
+  for (size_t f = 1; f < advance.size(); ++f) {
+    EXPECT_GE(advance[f], advance[f - 1]);
+    EXPECT_LE(advance[f] - advance[f - 1], step + 1e-9);  // bounded crack speed
+    // A frame where it did not advance (and could) had its tip below the strength.
+    if (advance[f] == advance[f - 1] &&
+        advance[f] + step <= tear.at("max_length_mm").get<double>()) {
+      EXPECT_LE(stress[f], strength) << "frame " << f;
+    }
+  }
+  const Eigen::Vector3d dir(tear.at("direction")[0].get<double>(),
+                            tear.at("direction")[1].get<double>(),
+                            tear.at("direction")[2].get<double>());
+  EXPECT_GT(dir.y(), std::cos(30 * M_PI / 180));  // perpendicular to the pull, within 30 degrees
+  EXPECT_GT(s.max_cut_opening_mm, 2.0);
+}
+
+// vessel-cut: the kidney's tets plus a vessel tree attached to them; the true tube loses the
+// segment the cut crosses once the cut has passed it, and the mask holds organ and vessel.
+TEST(Generator, VesselCutSeversTheBranchItCrosses) {
+  const std::string d = testing::ScratchDir("synth_vessel_cut");
+  SynthOptions o = SmallRun("vessel-cut", d);
+  o.write_video = false;
+  o.kidney_cell_mm = 4.0;
+  const SynthSummary s = GenerateSyntheticScene(o);
+  EXPECT_EQ(s.unconverged_frames, 0);
+  const Scene scene = ReadScene(d + "/scene.json", {false});
+  EXPECT_FALSE(scene.model_mesh_path.empty());
+  ASSERT_EQ(scene.thin_structures.size(), 1u);
+  const ThinStructure& vessel = scene.thin_structures[0];
+  EXPECT_EQ(vessel.type, "vessel");
+  EXPECT_EQ(vessel.attach, "model");
+  EXPECT_GT(vessel.radius_mm, 0);
+  std::istringstream centreline(Slurp(vessel.centreline_path));
+  int polylines = 0;
+  for (std::string line; std::getline(centreline, line);) polylines += line.rfind("l ", 0) == 0;
+  EXPECT_EQ(polylines, 4);  // trunk + 3 branches
+  const auto rest = ThinObjects(d + "/gt/thin/000000.obj");
+  const auto last = ThinObjects(d + "/gt/thin/000010.obj");
+  ASSERT_EQ(rest.count("vessel"), 1u);
+  // Ring of 10 vertices per node, 20 triangles per segment: one segment fewer after the cut.
+  EXPECT_EQ(rest.at("vessel").num_faces() - last.at("vessel").num_faces(), 20);
+  const cv::Mat mask = cv::imread(d + "/gt/masks/000010.png", cv::IMREAD_UNCHANGED);
+  const SurfaceMesh organ = ReadSurfaceMesh(d + "/gt/surface/000010.obj");
+  const cv::Mat organ_mask =
+      render::RenderMask(render::ToRasterCamera(scene.camera), organ.vertices, organ.faces);
+  EXPECT_EQ(cv::countNonZero(organ_mask & ~mask), 0);  // the union holds the organ
 }
 
 TEST(Generator, RejectsUnknownScenarioAndBadOptions) {

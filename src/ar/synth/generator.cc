@@ -1,15 +1,21 @@
 #include "ar/synth/generator.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 
+#include <Eigen/Eigenvalues>
+
+#include "ar/pipeline/record_writer.h"
 #include "ar/render/rasterizer.h"
 #include "ar/synth/scenarios.h"
 #include "ar/synth/tissue_texture.h"
@@ -183,6 +189,260 @@ void DrawOccluder(cv::Mat* bgr, double t, uint64_t seed) {
   }
 }
 
+// Deformation gradient of tetrahedron `tet` of the truth (rest -> current).
+Eigen::Matrix3d DeformationGradientOf(const Truth& truth, int tet) {
+  Eigen::Matrix3d dm, ds;
+  for (int c = 0; c < 3; ++c) {
+    dm.col(c) =
+        (truth.rest.row(truth.tets(tet, c + 1)) - truth.rest.row(truth.tets(tet, 0))).transpose();
+    ds.col(c) = (truth.x.row(truth.tets(tet, c + 1)) - truth.x.row(truth.tets(tet, 0))).transpose();
+  }
+  return ds * dm.inverse();
+}
+
+Eigen::Vector3d RestCentroid(const Truth& truth, int tet) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 4; ++k) c += truth.rest.row(truth.tets(tet, k)).transpose();
+  return c / 4;
+}
+
+// Tetrahedra of the process zone: rest centroid within `radius` of `tip` and ahead of it.
+std::vector<int> ProcessZone(const Truth& truth, const Eigen::Vector3d& tip,
+                             const Eigen::Vector3d& dir, double radius) {
+  std::vector<int> zone;
+  for (int k = 0; k < truth.tets.rows(); ++k) {
+    const Eigen::Vector3d c = RestCentroid(truth, k);
+    if ((c - tip).norm() <= radius && (c - tip).dot(dir) >= 0) zone.push_back(k);
+  }
+  return zone;
+}
+
+// Mean over `zone` of the largest principal Cauchy stress of the neo-Hookean truth (Pa):
+// sigma = mu / J (B - I) + lambda ln J / J I, B = F F^T.
+double MeanLargestPrincipalStress(const Truth& truth, const std::vector<int>& zone,
+                                  const NeoHookeanMaterial& material) {
+  if (zone.empty()) return 0;
+  double sum = 0;
+  for (int k : zone) {
+    const Eigen::Matrix3d f = DeformationGradientOf(truth, k);
+    const double j = f.determinant();
+    const Eigen::Matrix3d sigma =
+        material.mu() / j * (f * f.transpose() - Eigen::Matrix3d::Identity()) +
+        material.lambda() * std::log(j) / j * Eigen::Matrix3d::Identity();
+    sum += Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(sigma, Eigen::EigenvaluesOnly)
+               .eigenvalues()
+               .maxCoeff();
+  }
+  return sum / zone.size();
+}
+
+// Faces of the mid-surface of a membrane slab: the faces of the tetrahedra below the mid-plane
+// whose three vertices lie on it (rest z = mid_z), oriented towards +z; over split vertex ids,
+// so an opened cut or tear shows in the sheet.
+RowMatX3i MidSurfaceFaces(const Truth& truth, double mid_z) {
+  std::vector<Eigen::Vector3i> faces;
+  for (int t = 0; t < truth.tets.rows(); ++t) {
+    if (RestCentroid(truth, t).z() >= mid_z) continue;
+    for (int k = 0; k < 4; ++k) {
+      const std::array<int, 3> f = TetFace(truth.tets, t, k);
+      if (std::all_of(f.begin(), f.end(),
+                      [&](int v) { return std::abs(truth.rest(v, 2) - mid_z) < 1e-6; }))
+        faces.emplace_back(f[0], f[1], f[2]);
+    }
+  }
+  RowMatX3i out(static_cast<Eigen::Index>(faces.size()), 3);
+  for (size_t f = 0; f < faces.size(); ++f)
+    out.row(static_cast<Eigen::Index>(f)) = faces[f].transpose();
+  return out;
+}
+
+// A vessel's centreline nodes embedded in the truth's tetrahedra (barycentric coordinates in the
+// rest mesh; tetrahedron ids survive the cut's splits, so the nodes follow their side).
+struct VesselEmbedding {
+  std::vector<int> tet;
+  std::vector<Eigen::Vector4d> bary;
+};
+
+VesselEmbedding EmbedNodes(const RowMatX3d& rest, const RowMatX4i& tets, const RowMatX3d& nodes) {
+  VesselEmbedding e;
+  for (int i = 0; i < nodes.rows(); ++i) {
+    const Eigen::Vector3d p = nodes.row(i).transpose();
+    int best = -1;
+    double best_min = -std::numeric_limits<double>::infinity();
+    Eigen::Vector4d best_bary;
+    for (int t = 0; t < tets.rows(); ++t) {
+      Eigen::Matrix3d m;
+      for (int c = 0; c < 3; ++c)
+        m.col(c) = (rest.row(tets(t, c + 1)) - rest.row(tets(t, 0))).transpose();
+      const Eigen::Vector3d l = m.inverse() * (p - rest.row(tets(t, 0)).transpose());
+      const Eigen::Vector4d b(1 - l.sum(), l.x(), l.y(), l.z());
+      if (b.minCoeff() > best_min) {
+        best_min = b.minCoeff();
+        best = t;
+        best_bary = b;
+      }
+      if (best_min >= 0) break;
+    }
+    ARREG_ASSERT(best >= 0 && best_min > -1e-6, "vessel node ", i, " is outside the truth mesh");
+    e.tet.push_back(best);
+    e.bary.push_back(best_bary);
+  }
+  return e;
+}
+
+RowMatX3d EmbeddedPositions(const Truth& truth, const VesselEmbedding& e) {
+  RowMatX3d x(static_cast<Eigen::Index>(e.tet.size()), 3);
+  for (size_t i = 0; i < e.tet.size(); ++i) {
+    Eigen::Vector3d p = Eigen::Vector3d::Zero();
+    for (int c = 0; c < 4; ++c)
+      p += e.bary[i][c] * truth.x.row(truth.tets(e.tet[i], c)).transpose();
+    x.row(static_cast<Eigen::Index>(i)) = p.transpose();
+  }
+  return x;
+}
+
+// The vessel as a tube: a ring of `ring` vertices at `radius` around each node of each piece
+// (pieces: node chains; a branch point starts its own ring in every piece), no caps.
+SurfaceMesh TubeSurface(const RowMatX3d& nodes, const std::vector<std::vector<int>>& pieces,
+                        double radius, int ring = 10) {
+  std::vector<Eigen::Vector3d> vertices;
+  std::vector<Eigen::Vector3i> faces;
+  for (const std::vector<int>& piece : pieces) {
+    if (piece.size() < 2) continue;
+    const int base = static_cast<int>(vertices.size());
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+    for (size_t i = 0; i < piece.size(); ++i) {
+      const Eigen::Vector3d a = nodes.row(piece[i == 0 ? 0 : i - 1]).transpose();
+      const Eigen::Vector3d b = nodes.row(piece[i + 1 < piece.size() ? i + 1 : i]).transpose();
+      const Eigen::Vector3d tangent = (b - a).normalized();
+      if (i == 0) {  // any perpendicular, then parallel transport (no twist along the tube)
+        normal = tangent.unitOrthogonal();
+      } else {
+        normal = (normal - normal.dot(tangent) * tangent).normalized();
+      }
+      const Eigen::Vector3d binormal = tangent.cross(normal);
+      const Eigen::Vector3d c = nodes.row(piece[i]).transpose();
+      for (int k = 0; k < ring; ++k) {
+        const double phi = 2 * M_PI * k / ring;
+        vertices.push_back(c + radius * (std::cos(phi) * normal + std::sin(phi) * binormal));
+      }
+      if (i == 0) continue;
+      const int r0 = base + static_cast<int>(i - 1) * ring, r1 = r0 + ring;
+      for (int k = 0; k < ring; ++k) {
+        const int k1 = (k + 1) % ring;
+        faces.emplace_back(r0 + k, r0 + k1, r1 + k1);
+        faces.emplace_back(r0 + k, r1 + k1, r1 + k);
+      }
+    }
+  }
+  SurfaceMesh mesh;
+  mesh.vertices.resize(static_cast<Eigen::Index>(vertices.size()), 3);
+  for (size_t v = 0; v < vertices.size(); ++v)
+    mesh.vertices.row(static_cast<Eigen::Index>(v)) = vertices[v].transpose();
+  mesh.faces.resize(static_cast<Eigen::Index>(faces.size()), 3);
+  for (size_t f = 0; f < faces.size(); ++f)
+    mesh.faces.row(static_cast<Eigen::Index>(f)) = faces[f].transpose();
+  return mesh;
+}
+
+// The vessel's polylines cut into pieces where the cut has opened between two consecutive nodes
+// (their rest positions on opposite sides of the cut surface, the crossing already reached).
+std::vector<std::vector<int>> VesselPieces(const VesselSpec& vessel, const CutSurfaceSpec* cut,
+                                           double advance_mm) {
+  std::vector<std::vector<int>> pieces;
+  for (const std::vector<int>& line : vessel.polylines) {
+    pieces.push_back({line.front()});
+    for (size_t i = 1; i < line.size(); ++i) {
+      if (cut) {
+        const Eigen::Vector3d a = vessel.nodes.row(line[i - 1]).transpose();
+        const Eigen::Vector3d b = vessel.nodes.row(line[i]).transpose();
+        const double fa = cut->level_set(a), fb = cut->level_set(b);
+        if ((fa < 0) != (fb < 0)) {
+          const Eigen::Vector3d crossing = a + (b - a) * (fa / (fa - fb));
+          if (cut->progress_mm(crossing) <= advance_mm) pieces.push_back({});
+        }
+      }
+      pieces.back().push_back(line[i]);
+    }
+  }
+  return pieces;
+}
+
+// The centreline given to the registration: each polyline resampled to about `spacing` (every
+// k-th node, ends kept, shared branch nodes shared), OBJ `v` and `l` lines.
+void WriteCentreline(const std::string& path, const VesselSpec& vessel, double spacing_mm) {
+  std::map<int, int> index;  // truth node -> OBJ vertex (1-based)
+  std::vector<int> order;
+  std::vector<std::vector<int>> lines;
+  for (const std::vector<int>& line : vessel.polylines) {
+    double length = 0;
+    for (size_t i = 1; i < line.size(); ++i)
+      length += (vessel.nodes.row(line[i]) - vessel.nodes.row(line[i - 1])).norm();
+    const int segments = std::max(1, static_cast<int>(std::round(length / spacing_mm)));
+    std::vector<int> kept;
+    for (int k = 0; k <= segments; ++k)
+      kept.push_back(line[static_cast<size_t>(std::round(k * (line.size() - 1.0) / segments))]);
+    std::vector<int> out;
+    for (int node : kept) {
+      if (!index.count(node)) {
+        order.push_back(node);
+        index[node] = static_cast<int>(order.size());
+      }
+      if (out.empty() || out.back() != index[node]) out.push_back(index[node]);
+    }
+    lines.push_back(out);
+  }
+  WriteFileAtomic(path, [&](std::ostream& os) {
+    os << "# arreg synth: vessel centreline (model frame, mm)\n";
+    char text[96];
+    for (int node : order) {
+      std::snprintf(text, sizeof(text), "v %.9g %.9g %.9g\n", vessel.nodes(node, 0),
+                    vessel.nodes(node, 1), vessel.nodes(node, 2));
+      os << text;
+    }
+    for (const std::vector<int>& l : lines) {
+      os << "l";
+      for (int v : l) os << ' ' << v;
+      os << '\n';
+    }
+  });
+}
+
+// Crack direction of a tear: the notched sheet is solved at the grips' state of time t_probe (in
+// 4 load steps); the crack runs in the sheet plane perpendicular to the largest principal stretch
+// direction (rest frame; coaxial with the largest principal stress of the isotropic material),
+// from C = F^T F averaged over the process zone ahead of the notch tip.
+Eigen::Vector3d TearDirection(const Scenario& s, double t_probe) {
+  const TearSpec& tear = *s.tear;
+  TetMesh mesh = s.truth.mesh;  // a copy: this notch's snapping must not move the real rest mesh
+  ProgressiveCut notch(&mesh, TearPath(tear, tear.notch_dir), s.cut->options);
+  notch.Advance(tear.notch_mm);
+  Truth truth;
+  Rebuild(s, mesh.vertices, notch.ComputeSplit(), &truth);
+  for (int step = 1; step <= 4; ++step) {
+    const double t = t_probe * step / 4;
+    RowMatX3d targets = truth.x;
+    for (int v = 0; v < truth.x.rows(); ++v)
+      if (truth.grip_of[v] >= 0)
+        targets.row(v) =
+            s.grips[truth.grip_of[v]].Target(truth.rest.row(v).transpose(), t).transpose();
+    truth.solver->Solve(targets, &truth.x);
+  }
+  Eigen::Matrix3d c = Eigen::Matrix3d::Zero();
+  for (int k : ProcessZone(truth, tear.notch_tip, tear.notch_dir, tear.process_zone_mm)) {
+    const Eigen::Matrix3d f = DeformationGradientOf(truth, k);
+    c += f.transpose() * f;
+  }
+  const Eigen::Vector3d n = tear.plane_normal.normalized();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen(c);
+  Eigen::Vector3d e = eigen.eigenvectors().col(2);  // largest eigenvalue last
+  e -= e.dot(n) * n;
+  if (e.norm() < 1e-9) return tear.notch_dir;  // no in-plane stretch: continue straight
+  Eigen::Vector3d crack = n.cross(e).normalized();
+  if (crack.dot(tear.notch_dir) < 0) crack = -crack;
+  return crack;
+}
+
 }  // namespace
 
 SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
@@ -195,11 +455,13 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
   scenario_options.zoom = options.zoom;
   scenario_options.fine_cell_mm = options.fine_cell_mm;
   scenario_options.kidney_cell_mm = options.kidney_cell_mm;
+  scenario_options.seed = options.seed;
   Scenario s = BuildScenario(options.scenario, scenario_options);
-  ARREG_CHECK_INPUT(s.truth.mesh.num_tetrahedra() >= 4 * s.model.mesh.num_tetrahedra(), "",
-                    "fine_cell_mm", "the truth mesh needs at least 4x the model's tetrahedra (",
-                    s.truth.mesh.num_tetrahedra(), " vs ", s.model.mesh.num_tetrahedra(),
-                    "); use a finer truth mesh");
+  ARREG_CHECK_INPUT(
+      !s.has_model || s.truth.mesh.num_tetrahedra() >= 4 * s.model.mesh.num_tetrahedra(), "",
+      "fine_cell_mm", "the truth mesh needs at least 4x the model's tetrahedra (",
+      s.truth.mesh.num_tetrahedra(), " vs ", s.model.mesh.num_tetrahedra(),
+      "); use a finer truth mesh");
   SynthSummary summary;
   summary.frames = options.frames;
   summary.truth_tetrahedra = s.truth.mesh.num_tetrahedra();
@@ -212,11 +474,21 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
   CreateDirectories(gt + "/masks");
   CreateDirectories(gt + "/surface");
   if (s.has_internal_structure) CreateDirectories(gt + "/internal");
+  const bool has_thin = s.membrane || s.vessel;
+  if (has_thin) CreateDirectories(gt + "/thin");
 
+  // A tear's path: the notch, then the crack perpendicular to the largest principal stress at the
+  // notch tip (probed at the end of the first loading phase).
+  Eigen::Vector3d crack_dir = Eigen::Vector3d::Zero();
+  if (s.tear) {
+    crack_dir = TearDirection(s, 0.3);
+    s.cut->surface = TearPath(*s.tear, crack_dir);
+    s.cut->length_mm = s.tear->max_length_mm;
+  }
   // Cut: conforming faces in the truth mesh (snapping moves rest vertices).
   std::unique_ptr<ProgressiveCut> cut;
   if (s.cut) {
-    cut = std::make_unique<ProgressiveCut>(&s.truth.mesh, s.cut->surface);
+    cut = std::make_unique<ProgressiveCut>(&s.truth.mesh, s.cut->surface, s.cut->options);
     summary.snapped_vertices = cut->num_snapped_vertices();
   }
   const RowMatX3d original_rest = s.truth.mesh.vertices;
@@ -232,6 +504,28 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
   }
   Rebuild(s, original_rest, split, &truth);
   std::vector<int> face_open_frame(cut ? cut->num_faces() : 0, -1);
+  double cut_advance = cut ? s.cut->advance_mm.At(0).x() : 0.0;
+  // Opens the cut up to `advance` (mm along its path): new faces get this frame, the truth is
+  // rebuilt on the new topology. Returns whether faces opened.
+  const auto advance_cut = [&](double advance, int frame) {
+    const std::vector<bool> was_open = cut->FaceOpen();
+    cut_advance = advance;
+    if (!cut->Advance(advance)) return false;
+    const std::vector<bool> now_open = cut->FaceOpen();
+    for (size_t f = 0; f < now_open.size(); ++f)
+      if (now_open[f] && !was_open[f]) face_open_frame[f] = frame;
+    Rebuild(s, original_rest, cut->ComputeSplit(), &truth);
+    return true;
+  };
+  if (cut) {
+    const std::vector<bool> open = cut->FaceOpen();
+    for (size_t f = 0; f < open.size(); ++f)
+      if (open[f]) face_open_frame[f] = 0;
+  }
+  std::optional<VesselEmbedding> vessel_embedding;
+  if (s.vessel)
+    vessel_embedding = EmbedNodes(original_rest, s.truth.mesh.tetrahedra, s.vessel->nodes);
+  std::vector<double> tear_stress, tear_advance;  // per frame, with a tear
   std::vector<bool> internal_tet(s.truth.labels.size());
   for (int t = 0; t < s.truth.labels.size(); ++t) internal_tet[t] = s.truth.labels[t] == 2;
 
@@ -254,27 +548,36 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
 
   for (int frame = 0; frame < options.frames; ++frame) {
     const double t = static_cast<double>(frame) / (options.frames - 1);
-    if (cut) {
-      const std::vector<bool> was_open = cut->FaceOpen();
-      if (cut->Advance(s.cut->advance_mm.At(t).x())) {
-        const std::vector<bool> now_open = cut->FaceOpen();
-        for (size_t f = 0; f < now_open.size(); ++f)
-          if (now_open[f] && !was_open[f]) face_open_frame[f] = frame;
-        Rebuild(s, original_rest, cut->ComputeSplit(), &truth);
-      } else if (frame == 0) {
-        const std::vector<bool> now_open = cut->FaceOpen();
-        for (size_t f = 0; f < now_open.size(); ++f)
-          if (now_open[f]) face_open_frame[f] = 0;
+    if (cut && !s.tear) advance_cut(s.cut->advance_mm.At(t).x(), frame);
+    const auto solve_frame = [&]() {
+      RowMatX3d targets = truth.x;
+      for (int v = 0; v < truth.x.rows(); ++v)
+        if (truth.grip_of[v] >= 0)
+          targets.row(v) =
+              s.grips[truth.grip_of[v]].Target(truth.rest.row(v).transpose(), t).transpose();
+      const QuasiStaticSummary solve = truth.solver->Solve(targets, &truth.x);
+      summary.newton_iterations += solve.iterations;
+      return solve.converged;
+    };
+    bool converged = solve_frame();
+    if (s.tear) {
+      // The crack advances by steps while the stress ahead of its tip exceeds the strength (at
+      // most max_steps_per_frame: a bounded crack speed), re-solving after each step.
+      const TearSpec& tear = *s.tear;
+      double stress = 0;
+      for (int step = 0;; ++step) {
+        const Eigen::Vector3d tip = tear.notch_tip + (cut_advance - tear.notch_mm) * crack_dir;
+        stress = MeanLargestPrincipalStress(
+            truth, ProcessZone(truth, tip, crack_dir, tear.process_zone_mm), s.truth_material);
+        if (stress <= tear.strength_pa || step >= tear.max_steps_per_frame ||
+            cut_advance + tear.step_mm > tear.max_length_mm + 1e-9)
+          break;
+        if (advance_cut(cut_advance + tear.step_mm, frame)) converged = solve_frame();
       }
+      tear_stress.push_back(stress);
+      tear_advance.push_back(cut_advance);
     }
-    RowMatX3d targets = truth.x;
-    for (int v = 0; v < truth.x.rows(); ++v)
-      if (truth.grip_of[v] >= 0)
-        targets.row(v) =
-            truth.rest.row(v) + s.grips[truth.grip_of[v]].displacement_mm.At(t).transpose();
-    const QuasiStaticSummary solve = truth.solver->Solve(targets, &truth.x);
-    summary.newton_iterations += solve.iterations;
-    if (!solve.converged) ++summary.unconverged_frames;
+    if (!converged) ++summary.unconverged_frames;
     const Eigen::VectorXd ratios = truth.energy->VolumeRatios(truth.x);
     double volume = 0, rest_volume = 0;
     for (int k = 0; k < truth.tets.rows(); ++k) {
@@ -290,13 +593,31 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
     summary.max_volume_change =
         std::max(summary.max_volume_change, std::abs(volume / rest_volume - 1));
 
-    // Surfaces of this frame.
+    // Surfaces of this frame; the mask is the union of everything registered.
     const RowMatX3i faces = BoundaryFaces(truth.tets);
-    const cv::Mat mask = render::RenderMask(raster_camera, truth.x, faces);
+    cv::Mat mask = render::RenderMask(raster_camera, truth.x, faces);
+    std::vector<SurfaceMesh> thin_meshes;
+    std::vector<std::string> thin_names;
+    if (s.membrane) {
+      thin_meshes.push_back(CompactSurface(truth.x, MidSurfaceFaces(truth, s.membrane->mid_z_mm)));
+      thin_names.push_back(s.membrane->name);
+    }
+    SurfaceMesh tube;
+    if (s.vessel) {
+      tube = TubeSurface(EmbeddedPositions(truth, *vessel_embedding),
+                         VesselPieces(*s.vessel, cut ? &s.cut->surface : nullptr, cut_advance),
+                         s.vessel->radius_mm);
+      thin_meshes.push_back(tube);
+      thin_names.push_back(s.vessel->name);
+      cv::bitwise_or(mask, render::RenderMask(raster_camera, tube.vertices, tube.faces), mask);
+    }
     WritePng(gt + "/masks/" + FrameName(frame, "png"), mask);
     const bool save_surface = frame % options.surface_every_k == 0 || frame == options.frames - 1;
     if (save_surface) {
       WriteSurfaceMesh(gt + "/surface/" + FrameName(frame, "obj"), CompactSurface(truth.x, faces));
+      if (has_thin)
+        pipeline::WriteInternalObj(gt + "/thin/" + FrameName(frame, "obj"), thin_meshes,
+                                   thin_names);
       if (s.has_internal_structure)
         WriteSurfaceMesh(gt + "/internal/" + FrameName(frame, "obj"),
                          CompactSurface(truth.x, BoundaryFaces(truth.tets, internal_tet)));
@@ -315,6 +636,12 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
             f.barycentric[2] * truth.rest.row(faces(f.face, 2)).transpose();
         return render::ShadeBlinnPhong(texture.Albedo(rest), f, shading);
       });
+      if (s.vessel)  // dark red, seen only where a cut opens the organ above it
+        target.Draw(tube.vertices, tube.faces, render::VertexNormals(tube.vertices, tube.faces),
+                    [&](const render::Fragment& f) {
+                      return render::ShadeBlinnPhong(Eigen::Vector3f(0.45f, 0.05f, 0.08f), f,
+                                                     shading);
+                    });
       cv::Mat image = target.ResolveBgr();
       if (options.occluder) DrawOccluder(&image, t, options.seed);
       if (options.blur_sigma_px > 0)
@@ -387,14 +714,32 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
          {{"fraction_of_length_over_2mm", summary.cut_open_fraction},
           {"max_separation_mm", summary.max_cut_opening_mm},
           {"bin_mm", bin_mm}}}};
+    if (s.tear)
+      cut_json["cut"]["tear"] = {
+          {"model",
+           "crack from the notch tip perpendicular (in the sheet plane) to the largest principal "
+           "stress at the tip; advances one step while the mean largest principal Cauchy stress "
+           "of the tetrahedra within process_zone_mm ahead of the tip exceeds strength_pa"},
+          {"notch_mm", s.tear->notch_mm},
+          {"notch_tip", {s.tear->notch_tip.x(), s.tear->notch_tip.y(), s.tear->notch_tip.z()}},
+          {"direction", {crack_dir.x(), crack_dir.y(), crack_dir.z()}},
+          {"strength_pa", s.tear->strength_pa},
+          {"step_mm", s.tear->step_mm},
+          {"max_steps_per_frame", s.tear->max_steps_per_frame},
+          {"max_length_mm", s.tear->max_length_mm},
+          {"process_zone_mm", s.tear->process_zone_mm},
+          {"tip_stress_pa", tear_stress},
+          {"advance_mm", tear_advance}};
   }
   WriteJson(gt + "/cut.json", cut_json);
 
   // Registration inputs: coarse model, internal structure at rest, scene file.
-  WriteTetMesh(dir + "/model.vtk", s.model.mesh);
   Scene scene;
   scene.description = "arreg synth " + s.name + ": " + s.description;
-  scene.model_mesh_path = dir + "/model.vtk";
+  if (s.has_model) {
+    WriteTetMesh(dir + "/model.vtk", s.model.mesh);
+    scene.model_mesh_path = dir + "/model.vtk";
+  }
   if (s.has_internal_structure) {
     std::vector<bool> model_internal(s.truth.labels.size());
     for (int k = 0; k < s.truth.labels.size(); ++k) model_internal[k] = s.truth.labels[k] == 2;
@@ -412,6 +757,39 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
   scene.ground_truth_path = gt;
   scene.material.youngs_modulus_pa = s.model_youngs_modulus_pa;
   scene.material.poisson_ratio = s.model_poisson_ratio;
+  nlohmann::json thin_meta = nlohmann::json::array();
+  if (s.membrane) {  // a shell on the coarse mid-surface, held along the supports
+    WriteSurfaceMesh(dir + "/membrane.obj", s.membrane->model_mid_surface);
+    ThinStructure shell;
+    shell.name = s.membrane->name;
+    shell.type = "shell";
+    shell.mesh_path = dir + "/membrane.obj";
+    shell.thickness_mm = s.membrane->thickness_mm;
+    shell.material = scene.material;
+    shell.fixed_vertices = s.membrane->model_fixed_vertices;
+    shell.color = Eigen::Vector3d(0.3, 0.8, 1.0);
+    scene.thin_structures.push_back(shell);
+    thin_meta.push_back({{"name", shell.name},
+                         {"type", "shell"},
+                         {"thickness_mm", shell.thickness_mm},
+                         {"model_triangles", s.membrane->model_mid_surface.num_faces()}});
+  }
+  if (s.vessel) {  // a centreline tree inside the organ, tied to it
+    WriteCentreline(dir + "/vessel.obj", *s.vessel, s.vessel->model_spacing_mm);
+    ThinStructure vessel;
+    vessel.name = s.vessel->name;
+    vessel.type = "vessel";
+    vessel.centreline_path = dir + "/vessel.obj";
+    vessel.radius_mm = s.vessel->radius_mm;
+    vessel.material = scene.material;
+    vessel.attach = "model";
+    vessel.color = Eigen::Vector3d(0.9, 0.15, 0.2);
+    scene.thin_structures.push_back(vessel);
+    thin_meta.push_back({{"name", vessel.name},
+                         {"type", "vessel"},
+                         {"radius_mm", vessel.radius_mm},
+                         {"truth_nodes", s.vessel->nodes.rows()}});
+  }
 
   nlohmann::json volume = nlohmann::json::array();
   for (double r : summary.volume_ratio) volume.push_back(r);
@@ -450,9 +828,10 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
          {"unconverged_frames", summary.unconverged_frames},
          {"volume_ratio", volume}}},
        {"model", {{"tetrahedra", summary.model_tetrahedra}, {"vertices", summary.model_vertices}}},
+       {"thin_structures", thin_meta},
        {"mask",
-        "organ silhouette of gt/surface rasterised with the scene camera; the "
-        "occluder is not part of it"}});
+        "union silhouette of everything registered (gt/surface and gt/thin) rasterised with the "
+        "scene camera; the occluder is not part of it"}});
   // Written last: a scene file means the folder is complete (without --no-video
   // the video it names is absent).
   WriteScene(dir + "/scene.json", scene);

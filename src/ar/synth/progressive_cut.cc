@@ -17,6 +17,7 @@ void ProgressiveCutOptions::Check() const {
                     "must be in [0, 0.5)");
   ARREG_CHECK_INPUT(min_volume_fraction_after_snap > 0 && min_volume_fraction_after_snap < 1, "",
                     "min_volume_fraction_after_snap", "must be in (0, 1)");
+  ARREG_CHECK_INPUT(snap_reference_mm >= 0, "", "snap_reference_mm", "must be >= 0");
 }
 
 namespace {
@@ -122,6 +123,7 @@ ProgressiveCut::ProgressiveCut(TetMesh* rest_mesh, const CutSurfaceSpec& spec,
         for (int k = 0; k < 4; ++k)
           if (tets_(t, k) != v)
             shortest = std::min(shortest, (x.row(tets_(t, k)) - p.transpose()).norm());
+      if (options.snap_reference_mm > 0) shortest = options.snap_reference_mm;
       if ((moved - p).norm() > options.snap_fraction * shortest) continue;
       std::vector<double> before;
       for (int t : incident[v]) before.push_back(TetVolume(x, tets_, t));

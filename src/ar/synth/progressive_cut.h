@@ -26,6 +26,10 @@ struct ProgressiveCutOptions {
   // Vertices of cut faces closer to the surface than this fraction of their
   // shortest incident edge are moved onto it, default 0.45.
   double snap_fraction = 0.45;
+  // When > 0, the length (mm) the snap fraction applies to instead of the shortest incident edge:
+  // for thin slabs, whose through-thickness edges are much shorter than the in-plane ones the
+  // (in-plane) snaps move along. Default 0.
+  double snap_reference_mm = 0;
   // A snap is undone when it shrinks an incident tetrahedron below this fraction
   // of its volume, default 0.2.
   double min_volume_fraction_after_snap = 0.2;
