@@ -85,6 +85,21 @@ TEST(CurvedConvergence, ThickSphereIsMoreAccurateWithCurvedElements) {
     const int finest = levels - 1;
     EXPECT_LT(error[k][1][finest], 0.5 * error[k][0][finest]) << "degree " << k;
   }
+  // Under the concave inner sphere the relaxation is what keeps the coarse raise valid
+  // (at level 1 the elements are small enough against the curvature either way).
+  for (int level = 0; level <= 1; ++level) {
+    SurfaceRaiseSummary with, without;
+    RaiseTetMeshOntoSurface(testing::LinearBall(level, inner), 2, raise, &with);
+    SurfaceRaiseOptions no_relaxation = raise;
+    no_relaxation.relax_interior = false;
+    RaiseTetMeshOntoSurface(testing::LinearBall(level, inner), 2, no_relaxation, &without);
+    std::printf("level %d: inverted without / with relaxation %d / %d\n", level,
+                without.num_inverted, with.num_inverted);
+    if (level == 0) {
+      EXPECT_GT(without.num_inverted, 0);
+    }
+    EXPECT_EQ(with.num_inverted + with.num_undecided, 0);
+  }
   // P2: the straight error's rate falls towards 2 (geometry), the curved one stays higher.
   EXPECT_LT(std::log2(error[2][0][1] / error[2][0][2]), 2.5);
   EXPECT_GT(std::log2(error[2][1][1] / error[2][1][2]), 2.5);
