@@ -1,25 +1,34 @@
 // `arreg bench cutting`: the thesis beam experiment (5.2.2) comparing our remesher with
 // the Bielser-style baseline per snapping threshold, the time of one remeshing event and of
-// splitting an internal structure along the crack.
+// splitting an internal structure along the crack; with --random N, the random-cut sweep
+// (sequences of random cuts on the SOFA livers, the kidney and a beam, checked after every cut).
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <ostream>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "ar/synth/shapes.h"
 #include "bench_util.h"
 #include "commands.h"
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/mesh_generators.h"
+#include "core/mesh_io.h"
+#include "core/mesh_ops.h"
+#include "core/progress.h"
 #include "cutting/mechanics_update.h"
 #include "cutting/mesh_checks.h"
+#include "cutting/random_cuts.h"
 #include "cutting/structure_split.h"
 #include "cutting/system_conditioning.h"
 #include "cutting/tet_cutter.h"
@@ -162,19 +171,155 @@ std::string Plot(const std::vector<Run>& runs) {
   return s.str();
 }
 
+// The meshes of the random-cut sweep: the SOFA livers (when ../shared/data has them), the
+// kidney with its internal structure (the boundary of its label-2 elements) and the beam.
+std::vector<cutting::SweepMesh> SweepMeshes(const std::string& shared_data) {
+  std::vector<cutting::SweepMesh> meshes;
+  for (const char* name : {"liver", "liver2"}) {
+    const std::string path = shared_data + "/meshes/sofa/" + name + ".msh";
+    if (!std::filesystem::exists(path)) {
+      std::printf("%s: %s not found, skipped\n", name, path.c_str());
+      continue;
+    }
+    cutting::SweepMesh m;
+    m.name = name;
+    m.mesh = ReadTetMesh(path);
+    m.mesh.triangles.resize(0, 3);
+    FixOrientation(&m.mesh);
+    meshes.push_back(std::move(m));
+  }
+  {
+    // The registration model's resolution class (docs/synth.md: the coarse kidney is 7 mm).
+    synth::KidneyMeshOptions o;
+    o.cell_size_mm = o.facet_size_mm = 6;
+    o.facet_distance_mm = 1.0;
+    const synth::LabeledTetMesh kidney = synth::MeshKidney(synth::KidneyShape(), o);
+    cutting::SweepMesh m;
+    m.name = "kidney";
+    m.mesh = kidney.mesh;
+    std::vector<bool> internal(kidney.labels.size());
+    for (int t = 0; t < kidney.labels.size(); ++t) internal[t] = kidney.labels[t] == 2;
+    m.structure.vertices = kidney.mesh.vertices;
+    m.structure.faces = synth::BoundaryFaces(kidney.mesh.tetrahedra, internal);
+    RemoveUnreferencedVertices(&m.structure);
+    meshes.push_back(std::move(m));
+  }
+  meshes.push_back({"beam", MakeBeam(), {}});
+  return meshes;
+}
+
+int RunRandomSweep(int num_cuts, int seed, int threads, const std::string& shared_data,
+                   const std::string& json_path, const std::string& failures_dir) {
+  const std::vector<cutting::SweepMesh> meshes = SweepMeshes(shared_data);
+  for (const cutting::SweepMesh& m : meshes)
+    std::printf(
+        "%s: %d vertices, %d tetrahedra%s\n", m.name.c_str(), m.mesh.num_vertices(),
+        m.mesh.num_tetrahedra(),
+        m.structure.num_faces() > 0
+            ? (", internal structure of " + std::to_string(m.structure.num_faces()) + " triangles")
+                  .c_str()
+            : "");
+  cutting::SweepOptions options;
+  options.num_cuts = num_cuts;
+  options.seed = static_cast<std::uint64_t>(seed);
+  options.save_failures_dir = failures_dir;
+  options.threads = threads;
+  std::optional<ProgressReporter> progress;
+  progress.emplace("arreg bench cutting: random cut", stderr, ProgressOptionsFor(stderr));
+  const cutting::SweepResult r = cutting::RunRandomCutSweep(
+      meshes, options, [&](int done, int total) { progress->Update(done, total); });
+  progress.reset();
+
+  std::printf("\n%-8s %-13s | %6s %7s %8s %8s %10s | %8s\n", "mesh", "kind", "cuts", "crossed",
+              "no cross", "rejected", "violations", "ms/cut");
+  nlohmann::json per_mesh = nlohmann::json::object();
+  std::map<std::string, cutting::KindCounts> per_kind;
+  for (const auto& [mesh, kinds] : r.counts)
+    for (const auto& [kind, c] : kinds) {
+      std::printf("%-8s %-13s | %6d %7d %8d %8d %10d | %8.2f\n", mesh.c_str(), kind.c_str(), c.cuts,
+                  c.crossed, c.no_crossing, c.rejected, c.violations,
+                  1e3 * c.seconds / std::max(c.cuts, 1));
+      const nlohmann::json jc = {
+          {"cuts", c.cuts},         {"crossed", c.crossed},       {"no_crossing", c.no_crossing},
+          {"rejected", c.rejected}, {"violations", c.violations}, {"seconds", c.seconds}};
+      per_mesh[mesh][kind] = jc;
+      cutting::KindCounts& k = per_kind[kind];
+      k.cuts += c.cuts;
+      k.crossed += c.crossed;
+      k.no_crossing += c.no_crossing;
+      k.rejected += c.rejected;
+      k.violations += c.violations;
+      k.seconds += c.seconds;
+    }
+  nlohmann::json kinds_json = nlohmann::json::object();
+  for (const auto& [kind, c] : per_kind)
+    kinds_json[kind] = {
+        {"cuts", c.cuts},         {"crossed", c.crossed},       {"no_crossing", c.no_crossing},
+        {"rejected", c.rejected}, {"violations", c.violations}, {"seconds", c.seconds}};
+  nlohmann::json violations = nlohmann::json::array();
+  for (const cutting::Violation& v : r.violations) {
+    std::printf("VIOLATION %s seed %llu sequence %d cut %d (%s): %s: %s%s%s\n", v.mesh.c_str(),
+                static_cast<unsigned long long>(v.seed), v.sequence, v.index,
+                cutting::RandomCutKindName(v.kind), v.check.c_str(), v.detail.c_str(),
+                v.saved_dir.empty() ? "" : "; saved to ", v.saved_dir.c_str());
+    violations.push_back({{"mesh", v.mesh},
+                          {"seed", v.seed},
+                          {"sequence", v.sequence},
+                          {"index", v.index},
+                          {"kind", cutting::RandomCutKindName(v.kind)},
+                          {"check", v.check},
+                          {"detail", v.detail},
+                          {"saved", v.saved_dir}});
+  }
+  std::printf(
+      "%d cuts in %d sequences (%d ended early above %d elements), %zu violations, %.1f s\n",
+      r.cuts, r.sequences, r.stopped_by_growth, options.max_tetrahedra, r.violations.size(),
+      r.seconds);
+  if (!json_path.empty()) {
+    nlohmann::json j = {{"cuts", r.cuts},
+                        {"sequences", r.sequences},
+                        {"sequences_ended_by_growth", r.stopped_by_growth},
+                        {"max_tetrahedra", options.max_tetrahedra},
+                        {"threads", threads},
+                        {"violations", r.violations.size()},
+                        {"seconds", r.seconds},
+                        {"seed", seed},
+                        {"per_kind", kinds_json},
+                        {"per_mesh", per_mesh},
+                        {"violation_list", violations}};
+    WriteFileAtomic(json_path, [&](std::ostream& out) { out << j.dump(2) << "\n"; });
+  }
+  return r.violations.empty() ? 0 : 1;
+}
+
 }  // namespace
 
 int RunBenchCutting(int argc, char** argv) {
-  std::string json_path, svg_path;
-  int steps = 10, repeats = 21, structure_rings = 24;
+  std::string json_path, svg_path, failures_dir;
+  std::string shared_data =
+      std::getenv("ARREG_SHARED_DATA") ? std::getenv("ARREG_SHARED_DATA") : "../shared/data";
+  int steps = 10, repeats = 21, structure_rings = 24, random = 0, seed = 1, threads = 1;
   OptionParser parser(
       "arreg bench cutting [--steps N] [--repeats N] [--structure-rings N] [--json OUT] "
-      "[--svg OUT]",
+      "[--svg OUT] | --random N [--seed S] [--threads N] [--json OUT] [--save-failures DIR] "
+      "[--shared-data DIR]",
       "Cuts the thesis beam progressively with our remesher and the Bielser-style "
       "baseline at snapping thresholds 0, 0.1, 0.2, 0.3 (vertex/element growth, "
       "minimum dihedral angle, condition number of M + dt^2 K per step), and "
       "times one remeshing event crossing about 100 tetrahedra and the split of an "
-      "internal structure (a sphere, 2,208 triangles by default) along its crack.");
+      "internal structure (a sphere, 2,208 triangles by default) along its crack. "
+      "With --random N: N random cuts in sequences of up to 20 on the SOFA livers, the "
+      "kidney and the beam, every cut checked (docs/cutting.md); exit status 1 when a check "
+      "failed.");
+  parser.AddInt("random", &random, "N", "run the random-cut sweep of N cuts instead");
+  parser.AddInt("seed", &seed, "S", "seed of the random-cut sweep (default 1)");
+  parser.AddInt("threads", &threads, "N",
+                "random sweep: sequences cut in parallel (default 1; same result)");
+  parser.AddString("save-failures", &failures_dir, "DIR",
+                   "random sweep: write each offending case to a folder under DIR");
+  parser.AddString("shared-data", &shared_data, "DIR",
+                   "where meshes/sofa/liver*.msh are (default $ARREG_SHARED_DATA or "
+                   "../shared/data)");
   parser.AddInt("steps", &steps, "N", "cut steps of the advancing plane");
   parser.AddInt("repeats", &repeats, "N", "timed repetitions of the speed event and the split");
   parser.AddInt("structure-rings", &structure_rings, "N",
@@ -185,6 +330,11 @@ int RunBenchCutting(int argc, char** argv) {
   ARREG_CHECK_INPUT(steps >= 1, "", "--steps", "must be >= 1");
   ARREG_CHECK_INPUT(repeats >= 1, "", "--repeats", "must be >= 1");
   ARREG_CHECK_INPUT(structure_rings >= 2, "", "--structure-rings", "must be >= 2");
+  ARREG_CHECK_INPUT(random >= 0, "", "--random", "must be >= 0");
+  ARREG_CHECK_INPUT(seed >= 0, "", "--seed", "must be >= 0");
+  ARREG_CHECK_INPUT(threads >= 1, "", "--threads", "must be >= 1");
+  if (random > 0)
+    return RunRandomSweep(random, seed, threads, shared_data, json_path, failures_dir);
 
   const TetMesh beam = MakeBeam();
   cutting::ConditioningOptions cond;

@@ -195,6 +195,13 @@ class CutEvent {
     return Orient3d(m_.current_[t[0]], m_.current_[t[1]], m_.current_[t[2]], m_.current_[t[3]]) > 0;
   }
   bool TetValid(const Tet& t) const { return RestPositive(t) && CurrentPositive(t); }
+  // det [x1 - x0, x2 - x0, x3 - x0] of the rest positions, computed like
+  // mechanics::ComputeTetRestData (the rest volume the simulation uses, x 6).
+  double RestDeterminant(const Tet& t) const {
+    Eigen::Matrix3d dm;
+    for (int k = 0; k < 3; ++k) dm.col(k) = m_.rest_[t[k + 1]] - m_.rest_[t[0]];
+    return dm.determinant();
+  }
   double Quality(const Tet& t) const {
     return std::min(
         TetQuality(m_.rest_[t[0]], m_.rest_[t[1]], m_.rest_[t[2]], m_.rest_[t[3]]),
@@ -842,6 +849,13 @@ bool CutEvent::Verify(std::string* why) const {
     const bool in_inverted = parent >= 0 && crossed_inverted_[parent];
     if (!(in_inverted ? RestPositive(q) : TetValid(q))) {
       *why = "an inserted element would be inverted or flat";
+      return false;
+    }
+    // The exact orientation can be positive while the rest volume the mechanics compute
+    // (mechanics::ComputeTetRestData: det of the edge vectors from the first vertex, rounded) is
+    // not: such an element is flat for the simulation, which refuses it.
+    if (!(RestDeterminant(q) > 0)) {
+      *why = "an inserted element would have a non-positive rest volume in floating point";
       return false;
     }
     added_volume += TetVolume(m_.rest_[q[0]], m_.rest_[q[1]], m_.rest_[q[2]], m_.rest_[q[3]]);

@@ -1,0 +1,46 @@
+// The CI's random-cut sweep: `arreg bench cutting --random 1000` (the SOFA livers when
+// ../shared/data has them, the kidney with its internal structure, the beam) ends with no
+// violation, and its JSON holds the counts per kind.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "core/file_util.h"
+#include "test_util.h"
+
+namespace {
+
+TEST(RandomCutSweep, ThousandCutsWithoutViolation) {
+  const std::string binary = std::string(ARREG_BINARY_DIR) + "/apps/arreg";
+  if (!arreg::FileExists(binary)) GTEST_SKIP() << "arreg binary not built";
+  const std::string dir = arreg::testing::ScratchDir("random_cut_sweep");
+  const std::string command = binary + " bench cutting --random 1000 --seed 1 --json " + dir +
+                              "/sweep.json --save-failures " + dir + "/failures 2>&1";
+  std::string output;
+  FILE* pipe = popen(command.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::array<char, 4096> buffer{};
+  while (fgets(buffer.data(), buffer.size(), pipe)) output += buffer.data();
+  const int status = pclose(pipe);
+  ASSERT_TRUE(WIFEXITED(status)) << output;
+  EXPECT_EQ(WEXITSTATUS(status), 0) << output;
+  const nlohmann::json j = nlohmann::json::parse(arreg::ReadFileToString(dir + "/sweep.json"));
+  EXPECT_EQ(j.at("cuts").get<int>(), 1000);
+  EXPECT_EQ(j.at("violations").get<int>(), 0) << j.at("violation_list").dump(2);
+  EXPECT_TRUE(j.at("per_mesh").contains("kidney"));
+  EXPECT_TRUE(j.at("per_mesh").contains("beam"));
+  int crossed = 0;
+  for (const char* kind : {"plane", "sphere", "cylinder", "bent-sheet", "partial", "crack-front",
+                           "graze-vertex", "graze-edge", "graze-face"}) {
+    ASSERT_TRUE(j.at("per_kind").contains(kind)) << kind;
+    EXPECT_GT(j["per_kind"][kind].at("crossed").get<int>(), 0) << kind;
+    crossed += j["per_kind"][kind].at("crossed").get<int>();
+  }
+  EXPECT_GT(crossed, 700);
+}
+
+}  // namespace
