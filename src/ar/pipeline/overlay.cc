@@ -71,8 +71,9 @@ void OverlayRenderer::RenderCoverage(const render::PixelRect& box,
                                      double organ_opacity, cv::Mat* bgr) {
   internal_layer_.Clear(box);
   organ_layer_.Clear(box);
+  const bool contour = options_.style == OverlayStyle::kContour;
   for (const OverlayStructure& s : internal) {
-    if (!Visible(s)) continue;
+    if (!Visible(s) || (contour && s.outline)) continue;
     ShadeVertices(*s.vertices_mm, *s.faces, s.color.cast<float>());
     render::CoverageDrawOptions draw;
     draw.opacity = static_cast<float>(std::min(1.0, s.opacity));
@@ -168,8 +169,9 @@ void OverlayRenderer::RenderSupersampled(const render::PixelRect& box,
         },
         draw);
   };
+  const bool contour = options_.style == OverlayStyle::kContour;
   for (const OverlayStructure& s : internal) {
-    if (!Visible(s)) continue;
+    if (!Visible(s) || (contour && s.outline)) continue;
     render::DrawOptions draw;
     draw.opacity = static_cast<float>(std::min(1.0, s.opacity));
     draw.id = 2;
@@ -384,6 +386,18 @@ void OverlayRenderer::DrawLegend(const std::vector<OverlayStructure>& internal, 
   }
 }
 
+void OverlayRenderer::DrawOutline(const OverlayStructure& s, cv::Mat* bgr) const {
+  // Both sides of a sheet count (no culling), at pixel accuracy: thin structures are small.
+  const cv::Mat mask = render::RenderMask(raster_, *s.vertices_mm, *s.faces);
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask, contours, cv::RETR_LIST, cv::CHAIN_APPROX_NONE);
+  const int width = std::max(1, options_.contour_width_px - 1);
+  cv::Mat lines = bgr->clone();
+  cv::polylines(lines, contours, true, Bgr(s.color), width, cv::LINE_AA);
+  const double a = std::clamp(s.opacity, 0.0, 1.0);
+  cv::addWeighted(lines, a, *bgr, 1.0 - a, 0.0, *bgr);
+}
+
 void OverlayRenderer::Render(const RowMatX3d& organ_vertices_mm, const RowMatX3i& organ_faces,
                              const std::vector<OverlayStructure>& internal,
                              const OverlayLayers& layers, cv::Mat* bgr) {
@@ -417,7 +431,11 @@ void OverlayRenderer::Render(const RowMatX3d& organ_vertices_mm, const RowMatX3i
       RenderCoverage(box, organ_vertices_mm, organ_faces, internal, organ_opacity, bgr);
     else
       RenderSupersampled(box, organ_vertices_mm, organ_faces, internal, organ_opacity, bgr);
-    if (contour) DrawContour(box, organ_vertices_mm, organ_faces, bgr);
+    if (contour) {
+      DrawContour(box, organ_vertices_mm, organ_faces, bgr);
+      for (const OverlayStructure& s : internal)
+        if (s.outline && Visible(s)) DrawOutline(s, bgr);
+    }
   }
 
   if (options_.wireframe) {

@@ -26,6 +26,9 @@ struct OverlayStructure {
   Eigen::Vector3d color = Eigen::Vector3d(1, 1, 0);  // linear RGB in [0, 1]
   double opacity = 1.0;
   std::string name;  // shown in the legend; "" leaves it out
+  // In the contour style: drawn as the outline of its silhouette in its colour instead of
+  // filled (thin structures: a sheet over the organ would hide it). Default false.
+  bool outline = false;
 };
 
 // Optional annotation layers (pixels, world points).
@@ -66,6 +69,8 @@ class OverlayRenderer {
                    const RowMatX3i& organ_faces, cv::Mat* bgr);
   // The surface's edges shared by two faces (edge_quads_), recomputed only when the faces change.
   void UpdateEdges(const RowMatX3i& faces);
+  // The outline of one structure's silhouette (OverlayStructure::outline), in its colour.
+  void DrawOutline(const OverlayStructure& s, cv::Mat* bgr) const;
   void DrawLegend(const std::vector<OverlayStructure>& internal, int frame, cv::Mat* bgr) const;
   // Blinn-Phong at the vertices (Gouraud) into vertex_rgb_.
   void ShadeVertices(const RowMatX3d& vertices, const RowMatX3i& faces,

@@ -801,13 +801,15 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       bgr.copyTo(overlay_image);
       std::vector<OverlayStructure> layers_internal;
       for (size_t k = 0; k < internal.size(); ++k)
-        layers_internal.push_back(
-            {&internal[k].vertices, &internal[k].faces, impl_->model.internal_colors[k],
-             impl_->model.internal_opacity[k], impl_->model.internal_names[k]});
+        layers_internal.push_back({&internal[k].vertices, &internal[k].faces,
+                                   impl_->model.internal_colors[k],
+                                   impl_->model.internal_opacity[k], impl_->model.internal_names[k],
+                                   /*outline=*/false});
       if (thin && has_tets)
         for (size_t k = 0; k < thin_surfaces.size(); ++k)
           layers_internal.push_back({&thin_surfaces[k].vertices, &thin_surfaces[k].faces,
-                                     thin->colors()[k], thin->opacities()[k], thin->names()[k]});
+                                     thin->colors()[k], thin->opacities()[k], thin->names()[k],
+                                     /*outline=*/true});
       OverlayLayers layers;
       layers.feature_pixels = &pixels;
       layers.targets_mm = &targets;
