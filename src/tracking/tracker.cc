@@ -660,15 +660,30 @@ void FeatureTracker::RememberLost() {
     // Outliers moved implausibly: they are dropped for good (thesis 7.4.1). So are features
     // that rode an instrument (the motion test): they would be found again on it, on parts the
     // colour mask misses. One that landed on the mask is tissue the instrument covers or drags:
-    // it may be found again off the mask once uncovered.
-    if (status == TrackStatus::kTracked || status == TrackStatus::kOutlierSpatioTemporal) continue;
-    if (status == TrackStatus::kInstrument && current_[i].id < static_cast<int>(rode_.size()) &&
-        rode_[current_[i].id])
-      continue;
+    // it may be found again off the mask once uncovered. With after_instrument, every feature
+    // the instrument took (landed on its mask, rode it, or jumped beside it) waits when its look
+    // at acquisition was tissue, away from instruments: it was occluded or dragged tissue.
+    const int id = current_[i].id;
+    if (status == TrackStatus::kTracked) continue;
+    const bool rode =
+        status == TrackStatus::kInstrument && id < static_cast<int>(rode_.size()) && rode_[id];
+    const bool taken_by_instrument =
+        ReidentifyAfterInstrument() && id < static_cast<int>(acquired_clean_.size()) &&
+        acquired_clean_[id] &&
+        (status == TrackStatus::kInstrument ||
+         (status == TrackStatus::kOutlierSpatioTemporal &&
+          (NearInstrument(previous_position_[i]) || NearInstrument(current_[i].position_px))));
+    if ((status == TrackStatus::kOutlierSpatioTemporal || rode) && !taken_by_instrument) continue;
     // Where it was last followed (the frame before): LK's position in this
     // frame is what failed. Its look there verifies a re-identification.
-    LostFeature lost{current_[i].id, frame_, previous_position_[i], {}, {}};
-    if (status == TrackStatus::kLostAppearance) {
+    LostFeature lost{id, frame_, previous_position_[i], {}, {}};
+    if (taken_by_instrument) {
+      // Its last look may be the instrument's edge that dragged or covered it: matched against
+      // its look at acquisition, by SURF and by LK from that look.
+      lost.patch = acquired_look_[id];
+      lost.surroundings = acquired_surroundings_[id];
+      lost.after_instrument = true;
+    } else if (status == TrackStatus::kLostAppearance) {
       // Its last look may be the occluder edge that dragged it: a match must
       // look like the feature at its acquisition, and is found by SURF only
       // (re-acquisition by LK would follow the last look).
@@ -876,6 +891,9 @@ int FeatureTracker::Reidentify(const cv::Mat& roi_mask) {
     }
     if (best_k < 0 || best > o.max_descriptor_distance) continue;
     if (second < std::numeric_limits<float>::max() && best >= o.ratio * second) continue;
+    // Tissue an instrument took is found again once the instrument has left it: a match beside
+    // one may be the instrument itself.
+    if (lost_[l].after_instrument && NearInstrument(near[best_k].position_px)) continue;
     SamplePatch(pyramid_.float_image(0), near[best_k].position_px, options_.lk.window_px, &patch);
     if (Correlation(patch, lost_[l].patch) < o.min_patch_correlation) continue;
     matches.push_back({best, l, best_k});
@@ -905,9 +923,43 @@ int FeatureTracker::Reidentify(const cv::Mat& roi_mask) {
 }
 
 void FeatureTracker::RememberLook(int id, cv::Point2f position_px) {
-  if (!options_.appearance.enabled) return;
+  const bool after_instrument = ReidentifyAfterInstrument();
+  if (!options_.appearance.enabled && !after_instrument) return;
   if (static_cast<int>(acquired_look_.size()) <= id) acquired_look_.resize(id + 1);
   SamplePatch(pyramid_.float_image(0), position_px, options_.lk.window_px, &acquired_look_[id]);
+  if (!after_instrument) return;
+  if (static_cast<int>(acquired_surroundings_.size()) <= id) {
+    acquired_surroundings_.resize(id + 1);
+    acquired_clean_.resize(id + 1, 0);
+  }
+  acquired_clean_[id] = NearInstrument(position_px) ? 0 : 1;
+  if (acquired_clean_[id] && options_.reidentify.reacquire_by_lk)
+    SamplePatch(pyramid_.float_image(0), position_px,
+                options_.lk.window_px + 2 * kReacquireMarginPx, &acquired_surroundings_[id]);
+  else
+    acquired_surroundings_[id].clear();
+}
+
+bool FeatureTracker::ReidentifyAfterInstrument() const {
+  return options_.reidentify.enabled && options_.reidentify.after_instrument &&
+         options_.instruments.enabled;
+}
+
+bool FeatureTracker::NearInstrument(cv::Point2f p) const {
+  const double band = options_.instruments.motion.band_px;
+  for (const auto& [frame, q] : instrument_seen_)
+    if ((q - p).dot(q - p) <= band * band) return true;
+  if (instrument_mask_.empty()) return false;
+  const int r = static_cast<int>(std::ceil(band));
+  const int cx = static_cast<int>(std::lround(p.x)), cy = static_cast<int>(std::lround(p.y));
+  const int y0 = std::max(0, cy - r), y1 = std::min(instrument_mask_.rows - 1, cy + r);
+  const int x0 = std::max(0, cx - r), x1 = std::min(instrument_mask_.cols - 1, cx + r);
+  for (int y = y0; y <= y1; ++y) {
+    const uint8_t* m = instrument_mask_.ptr<uint8_t>(y);
+    for (int x = x0; x <= x1; ++x)
+      if (m[x] && (x - p.x) * (x - p.x) + (y - p.y) * (y - p.y) <= band * band) return true;
+  }
+  return false;
 }
 
 void FeatureTracker::CheckAppearance() {
@@ -1061,7 +1113,8 @@ int FeatureTracker::Reacquire(const cv::Mat& roi_mask) {
                     options_.lk.min_eigen_threshold, sample_image, &p))
       continue;
     if (p.x < border || p.y < border || p.x > gray_.cols - 1 - border ||
-        p.y > gray_.rows - 1 - border || !InsideRoi(p, roi_mask) || IsSpecular(p))
+        p.y > gray_.rows - 1 - border || !InsideRoi(p, roi_mask) || IsSpecular(p) ||
+        (f.after_instrument && NearInstrument(p)))
       continue;
     SamplePatch(image, p, side, &patch);
     if (Correlation(patch, f.patch) < o.min_lk_correlation) continue;
@@ -1103,6 +1156,8 @@ TrackFrameSummary FeatureTracker::Initialize(const cv::Mat& image, const cv::Mat
   previous_small_mask_.release();
   rode_.clear();
   acquired_look_.clear();
+  acquired_surroundings_.clear();
+  acquired_clean_.clear();
   anchors_.clear();
   reference_descriptors_.release();
   round_frame_ = -1;

@@ -118,6 +118,18 @@ struct ReidentifyOptions {
   // Least normalised cross-correlation for re-acquisition by LK (stricter than
   // min_patch_correlation: no descriptor supports the match). Default 0.8.
   double min_lk_correlation = 0.8;
+  // Features that an instrument passing over the tissue took (with
+  // InstrumentRejectionOptions on): those that landed on its mask, rode it (the
+  // motion test) or jumped beside it (a spatio-temporal outlier within the
+  // motion band_px of the mask or of features just dropped as on it). The
+  // instrument occluded or dragged tissue, which reappears where the tissue
+  // moved once it has passed. With this on, such a feature waits to be
+  // re-identified like the others when its window at acquisition lay at least
+  // band_px from every instrument pixel (the look is tissue, not a part of the
+  // instrument the colour mask misses), and it is matched, by SURF and by LK,
+  // against that look (its last look may be the instrument's edge), and only
+  // at least band_px from an instrument. Default false.
+  bool after_instrument = false;
 
   void Check() const;  // throws arreg::Error naming the bad field
 };
@@ -297,6 +309,8 @@ class FeatureTracker {
     // (window_px + 2 kReacquireMarginPx)^2 around it: the gradient of the
     // template and the target of the backward check of re-acquisition by LK.
     std::vector<float> surroundings;
+    // Taken by an instrument (ReidentifyOptions::after_instrument): found only away from one.
+    bool after_instrument = false;
   };
   static constexpr int kReacquireMarginPx = 10;
   // Re-acquisition by LK of the features Reidentify predicted but did not find.
@@ -331,8 +345,21 @@ class FeatureTracker {
   cv::Mat reference_descriptors_;
   TrackStore store_;
   // Per id: its window_px^2 window (row by row) in the frame where it was
-  // detected or last re-identified (AppearanceCheckOptions).
+  // detected or last re-identified (AppearanceCheckOptions,
+  // ReidentifyOptions::after_instrument).
   std::vector<std::vector<float>> acquired_look_;
+  // Per id, with ReidentifyOptions::after_instrument: the (window_px + 2
+  // kReacquireMarginPx)^2 surroundings of that window (re-acquisition by LK from
+  // the look at acquisition), and whether no instrument pixel lay within the
+  // motion band_px of it then.
+  std::vector<std::vector<float>> acquired_surroundings_;
+  std::vector<uint8_t> acquired_clean_;
+  // Whether an instrument mask pixel, or a feature dropped as on an instrument in the last
+  // kInstrumentMemoryFrames frames, lies within the motion band_px of p.
+  bool NearInstrument(cv::Point2f p) const;
+  // Whether features dropped beside an instrument wait for re-identification
+  // (ReidentifyOptions::after_instrument with instrument rejection on).
+  bool ReidentifyAfterInstrument() const;
   // Keeps the current frame's window at `position_px` as the look of feature `id`.
   void RememberLook(int id, cv::Point2f position_px);
   // Marks the tracked features of current_ whose window no longer correlates

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -332,10 +333,11 @@ TEST(InstrumentRejection, FeaturesOnJawsTheColourMissesAreDroppedByTheirRigidMot
     DrawBar(*bar, &image, true);
     return image;
   };
-  auto run = [&](bool motion) {
+  auto run = [&](bool motion, bool after_instrument = false) {
     FeatureTrackerOptions options;
     options.instruments.enabled = true;
     options.instruments.motion.enabled = motion;
+    options.reidentify.after_instrument = after_instrument;
     FeatureTracker tracker(options);
     Bar bar;
     tracker.Initialize(frame(0, &bar));
@@ -352,16 +354,81 @@ TEST(InstrumentRejection, FeaturesOnJawsTheColourMissesAreDroppedByTheirRigidMot
   };
   const auto [jaws_off, tracked_off] = run(false);
   const auto [jaws_on, tracked_on] = run(true);
+  // Riders are re-identified after an instrument only when their look at acquisition was tissue:
+  // the jaws' features were detected on the instrument and stay dropped.
+  const auto [jaws_after, tracked_after] = run(true, true);
   std::printf(
       "features on the jaws %d: still tracked after 6 frames %d without the motion test, "
-      "%d with it\n",
-      jaws_on, tracked_off, tracked_on);
+      "%d with it, %d with it and after_instrument\n",
+      jaws_on, tracked_off, tracked_on, tracked_after);
+  EXPECT_EQ(jaws_after, jaws_on);
+  EXPECT_LE(tracked_after, 0.2 * jaws_on);
   EXPECT_EQ(jaws_off, jaws_on);
   ASSERT_GE(jaws_on, 8) << "the colour mask must leave the reddish jaws to the motion test";
   EXPECT_GE(tracked_off, 0.5 * jaws_off) << "LK follows the jaws";
   // Measured: 3 of 32 left (on the jaws' border with the tissue, where LK's window straddles
   // both and the motion is neither the instrument's nor the tissue's).
   EXPECT_LE(tracked_on, 0.2 * jaws_on);
+}
+
+// A bar sweeps down over panning tissue (10 px per frame, its tip at x = 150: it covers the
+// tissue right of x = 150, a 60 px band of rows at a time) and leaves the image at frame 43. The
+// features it took (landed on its mask, dragged along by its edge, or jumping beside it) are
+// tissue: with ReidentifyOptions::after_instrument they are found again where the pan carried them,
+// matched against their look at acquisition; without it, those that rode it or jumped never come
+// back.
+TEST(InstrumentRejection, TissueTheBarPassedOverIsFoundAgainWhereThePanCarriedIt) {
+  constexpr int kFrames = 55;
+  const cv::Point2f pan(0.6f, -0.4f);  // px per frame
+  auto bar_at = [](int f) { return Bar{{150.0, -40.0 + 10.0 * f}, 0.0}; };
+  std::vector<cv::Mat> frames;
+  for (int f = 0; f <= kFrames; ++f) {
+    frames.push_back(Tissue(pan.x * f, pan.y * f));
+    DrawBar(bar_at(f), &frames.back());  // gone below the image from frame 43
+  }
+  struct Counts {
+    int taken = 0, back = 0, back_off = 0;
+  };
+  auto run = [&](bool after_instrument) {
+    FeatureTrackerOptions options;
+    options.instruments.enabled = true;
+    options.reidentify.after_instrument = after_instrument;
+    FeatureTracker tracker(options);
+    tracker.Initialize(frames[0]);
+    Counts n;
+    std::vector<int> taken;
+    for (int k = 1; k <= kFrames; ++k) {
+      tracker.Track(frames[k]);
+      for (const FeatureState& f : tracker.current())
+        if (f.status == TrackStatus::kInstrument || f.status == TrackStatus::kOutlierSpatioTemporal)
+          taken.push_back(f.id);
+    }
+    std::sort(taken.begin(), taken.end());
+    taken.erase(std::unique(taken.begin(), taken.end()), taken.end());
+    const Bar last = bar_at(kFrames);
+    for (int id : taken) {
+      // Tissue at frame 0 (away from the bar then), where the bar has passed by the end.
+      const cv::Point2f p0 = tracker.store().history(id).front().position_px;
+      if (Inside(bar_at(0).Outline(), p0, 30)) continue;
+      const cv::Point2f truth = p0 + pan * static_cast<float>(kFrames);
+      if (Inside(last.Outline(), truth, 30)) continue;
+      ++n.taken;
+      if (tracker.store().last_status(id) != TrackStatus::kTracked) continue;
+      const cv::Point2f now = tracker.store().history(id).back().position_px;
+      ++n.back;
+      n.back_off += cv::norm(now - truth) > 1.0;
+    }
+    return n;
+  };
+  const Counts off = run(false), on = run(true);
+  std::printf(
+      "tissue features the bar took: %d; tracked at frame %d without after_instrument %d (%d "
+      "more than 1 px off), with it %d of %d (%d off)\n",
+      off.taken, kFrames, off.back, off.back_off, on.back, on.taken, on.back_off);
+  ASSERT_GE(on.taken, 40);
+  EXPECT_LE(on.back_off, 0.05 * on.back);
+  EXPECT_GE(on.back, 0.8 * on.taken);
+  EXPECT_GE(on.back, off.back + 0.1 * on.taken);
 }
 
 // Real clip: hand-labelled instrument polygons (tests/data/instruments) at frames 0, 30 and 60;
