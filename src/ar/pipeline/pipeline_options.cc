@@ -177,6 +177,7 @@ void ReadTracking(const Scene& scene, FeatureTrackerOptions* o, PipelineOptions*
   r.Optional("instrument_min_area_fraction", &o->instruments.mask.min_area_fraction);
   r.Optional("instrument_margin_px", &o->instruments.mask.margin_px);
   r.Optional("instrument_motion", &o->instruments.motion.enabled);
+  r.Optional("reidentify_after_instrument", &o->reidentify.after_instrument);
   r.Finish();
 }
 
@@ -357,7 +358,8 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                    {"instrument_grow_max_warmth", o.tracking.instruments.mask.grow_max_warmth},
                    {"instrument_min_area_fraction", o.tracking.instruments.mask.min_area_fraction},
                    {"instrument_margin_px", o.tracking.instruments.mask.margin_px},
-                   {"instrument_motion", o.tracking.instruments.motion.enabled}};
+                   {"instrument_motion", o.tracking.instruments.motion.enabled},
+                   {"reidentify_after_instrument", o.tracking.reidentify.after_instrument}};
   j["lifting"] = {
       {"target", o.lifting.target == lift::LiftTarget::kPlane ? "plane" : "surface"},
       {"surface_update", o.lifting.surface_update == lift::SurfaceUpdate::kRayCastWithFallback
