@@ -232,6 +232,11 @@ int RunRandomSweep(int num_cuts, int seed, int threads, const std::string& share
 
   std::printf("\n%-8s %-13s | %6s %7s %8s %8s %10s | %8s\n", "mesh", "kind", "cuts", "crossed",
               "no cross", "rejected", "violations", "ms/cut");
+  const auto counts_json = [](const cutting::KindCounts& c) {
+    return nlohmann::json{
+        {"cuts", c.cuts},         {"crossed", c.crossed},       {"no_crossing", c.no_crossing},
+        {"rejected", c.rejected}, {"violations", c.violations}, {"seconds", c.seconds}};
+  };
   nlohmann::json per_mesh = nlohmann::json::object();
   std::map<std::string, cutting::KindCounts> per_kind;
   for (const auto& [mesh, kinds] : r.counts)
@@ -239,23 +244,11 @@ int RunRandomSweep(int num_cuts, int seed, int threads, const std::string& share
       std::printf("%-8s %-13s | %6d %7d %8d %8d %10d | %8.2f\n", mesh.c_str(), kind.c_str(), c.cuts,
                   c.crossed, c.no_crossing, c.rejected, c.violations,
                   1e3 * c.seconds / std::max(c.cuts, 1));
-      const nlohmann::json jc = {
-          {"cuts", c.cuts},         {"crossed", c.crossed},       {"no_crossing", c.no_crossing},
-          {"rejected", c.rejected}, {"violations", c.violations}, {"seconds", c.seconds}};
-      per_mesh[mesh][kind] = jc;
-      cutting::KindCounts& k = per_kind[kind];
-      k.cuts += c.cuts;
-      k.crossed += c.crossed;
-      k.no_crossing += c.no_crossing;
-      k.rejected += c.rejected;
-      k.violations += c.violations;
-      k.seconds += c.seconds;
+      per_mesh[mesh][kind] = counts_json(c);
+      per_kind[kind].Add(c);
     }
   nlohmann::json kinds_json = nlohmann::json::object();
-  for (const auto& [kind, c] : per_kind)
-    kinds_json[kind] = {
-        {"cuts", c.cuts},         {"crossed", c.crossed},       {"no_crossing", c.no_crossing},
-        {"rejected", c.rejected}, {"violations", c.violations}, {"seconds", c.seconds}};
+  for (const auto& [kind, c] : per_kind) kinds_json[kind] = counts_json(c);
   nlohmann::json violations = nlohmann::json::array();
   for (const cutting::Violation& v : r.violations) {
     std::printf("VIOLATION %s seed %llu sequence %d cut %d (%s): %s: %s%s%s\n", v.mesh.c_str(),

@@ -149,6 +149,15 @@ void RandomCutOptions::Check() const {
                     "must be >= min_graze_fraction");
 }
 
+void KindCounts::Add(const KindCounts& other) {
+  cuts += other.cuts;
+  crossed += other.crossed;
+  no_crossing += other.no_crossing;
+  rejected += other.rejected;
+  violations += other.violations;
+  seconds += other.seconds;
+}
+
 void SweepOptions::Check() const {
   ARREG_CHECK_INPUT(num_cuts >= 1, "", "num_cuts", "must be >= 1");
   ARREG_CHECK_INPUT(max_tetrahedra >= 1, "", "max_tetrahedra", "must be >= 1");
@@ -574,13 +583,7 @@ SweepResult RunRandomCutSweep(const std::vector<SweepMesh>& meshes, const SweepO
     result.cuts += r.cuts;
     result.stopped_by_growth += r.stopped_by_growth;
     for (const auto& [kind, c] : r.counts) {
-      KindCounts& total = result.counts[meshes[s % meshes.size()].name][kind];
-      total.cuts += c.cuts;
-      total.crossed += c.crossed;
-      total.no_crossing += c.no_crossing;
-      total.rejected += c.rejected;
-      total.violations += c.violations;
-      total.seconds += c.seconds;
+      result.counts[meshes[s % meshes.size()].name][kind].Add(c);
     }
     result.violations.insert(result.violations.end(), r.violations.begin(), r.violations.end());
   }

@@ -123,6 +123,7 @@ struct KindCounts {
   int rejected = 0;     // status kRejected (mesh unchanged: not a violation)
   int violations = 0;
   double seconds = 0;  // cutting and checking
+  void Add(const KindCounts& other);
 };
 
 struct SweepResult {
