@@ -86,13 +86,6 @@ double NowMs(bool thread_cpu) {
       .count();
 }
 
-RowMatX3d Transform(const RowMatX3d& points, double scale, const Eigen::Isometry3d& t) {
-  RowMatX3d out(points.rows(), 3);
-  for (int i = 0; i < points.rows(); ++i)
-    out.row(i) = (t * (scale * points.row(i).transpose())).transpose();
-  return out;
-}
-
 // surface_every_k of a ground-truth folder, 0 when it has none.
 int GroundTruthEveryK(const Scene& scene) {
   if (scene.ground_truth_path.empty()) return 0;
@@ -103,14 +96,6 @@ int GroundTruthEveryK(const Scene& scene) {
   if (j.contains("surface_every_k"))
     ReadJsonValue(j.at("surface_every_k"), meta, "surface_every_k", &k);
   return std::max(k, 0);
-}
-
-mechanics::Material ToMechanicsMaterial(const Material& m) {
-  mechanics::Material out;
-  out.youngs_modulus_pa = m.youngs_modulus_pa;
-  out.poisson_ratio = m.poisson_ratio;
-  out.density_kg_per_m3 = m.density_kg_m3;
-  return out;
 }
 
 // The detector's options with the outlier floor of CuttingStageOptions::min_outlier_measure_px
@@ -157,7 +142,7 @@ LoadedModel LoadSceneModel(const Scene& scene) {
   LoadedModel model;
   if (!scene.model_mesh_path.empty()) {
     model.mesh = ReadTetMesh(scene.model_mesh_path);
-    model.mesh.vertices = Transform(model.mesh.vertices, scene.mm_per_unit, scene.world_from_model);
+    model.mesh.vertices = PlaceInWorld(model.mesh.vertices, scene);
     FixOrientation(&model.mesh);
   } else {
     // A scene of thin structures only (ParseScene allows it only then).
@@ -169,7 +154,7 @@ LoadedModel LoadSceneModel(const Scene& scene) {
   model.thin = LoadThinStructures(scene);
   for (const InternalStructure& s : scene.internal_structures) {
     SurfaceMesh mesh = ReadSurfaceMesh(s.mesh_path);
-    mesh.vertices = Transform(mesh.vertices, scene.mm_per_unit, scene.world_from_model);
+    mesh.vertices = PlaceInWorld(mesh.vertices, scene);
     mesh.normals.resize(0, 3);
     model.internal.push_back(std::move(mesh));
     model.internal_names.push_back(s.name);

@@ -16,22 +16,6 @@ using mechanics::GeneralisedState;
 
 namespace {
 
-RowMatX3d Placed(const RowMatX3d& points, const Scene& scene) {
-  RowMatX3d out(points.rows(), 3);
-  for (int i = 0; i < points.rows(); ++i)
-    out.row(i) =
-        (scene.world_from_model * (scene.mm_per_unit * points.row(i).transpose())).transpose();
-  return out;
-}
-
-mechanics::Material ToMechanics(const Material& m) {
-  mechanics::Material out;
-  out.youngs_modulus_pa = m.youngs_modulus_pa;
-  out.poisson_ratio = m.poisson_ratio;
-  out.density_kg_per_m3 = m.density_kg_m3;
-  return out;
-}
-
 // Chains of the centreline graph between vertices of degree != 2 (ends and branch points).
 std::vector<std::vector<int>> Branches(int num_vertices, const std::vector<Eigen::Vector2i>& seg,
                                        const std::string& file) {
@@ -72,6 +56,22 @@ std::vector<std::vector<int>> Branches(int num_vertices, const std::vector<Eigen
 }
 
 }  // namespace
+
+RowMatX3d PlaceInWorld(const RowMatX3d& points, const Scene& scene) {
+  RowMatX3d out(points.rows(), 3);
+  for (int i = 0; i < points.rows(); ++i)
+    out.row(i) =
+        (scene.world_from_model * (scene.mm_per_unit * points.row(i).transpose())).transpose();
+  return out;
+}
+
+mechanics::Material ToMechanicsMaterial(const Material& m) {
+  mechanics::Material out;
+  out.youngs_modulus_pa = m.youngs_modulus_pa;
+  out.poisson_ratio = m.poisson_ratio;
+  out.density_kg_per_m3 = m.density_kg_m3;
+  return out;
+}
 
 void ReadCentreline(const std::string& path, RowMatX3d* vertices,
                     std::vector<Eigen::Vector2i>* segments) {
@@ -142,12 +142,12 @@ std::vector<LoadedThin> LoadThinStructures(const Scene& scene) {
     int num_vertices = 0;
     if (t.type == "shell") {
       const SurfaceMesh mesh = ReadSurfaceMesh(t.mesh_path);
-      l.vertices = Placed(mesh.vertices, scene);
+      l.vertices = PlaceInWorld(mesh.vertices, scene);
       l.triangles = mesh.faces;
       num_vertices = mesh.num_vertices();
       if (!t.visual_mesh_path.empty()) {
         SurfaceMesh visual = ReadSurfaceMesh(t.visual_mesh_path);
-        visual.vertices = Placed(visual.vertices, scene);
+        visual.vertices = PlaceInWorld(visual.vertices, scene);
         visual.normals.resize(0, 3);
         l.visual = std::move(visual);
       }
@@ -157,7 +157,7 @@ std::vector<LoadedThin> LoadThinStructures(const Scene& scene) {
     } else {
       RowMatX3d v;
       ReadCentreline(t.centreline_path, &v, &l.segments);
-      l.vertices = Placed(v, scene);
+      l.vertices = PlaceInWorld(v, scene);
       num_vertices = static_cast<int>(v.rows());
       Branches(num_vertices, l.segments, t.centreline_path);  // rejects loops early
     }
@@ -472,7 +472,7 @@ ThinSystem::ThinSystem(const std::vector<LoadedThin>& thin, const Scene& scene,
         for (size_t c = 0; c < chain.size(); ++c) points.row(c) = l.vertices.row(chain[c]);
         mechanics::Vessel vessel;
         try {
-          vessel = mechanics::MakeVessel(points, ToMechanics(t.material), vo, &state_);
+          vessel = mechanics::MakeVessel(points, ToMechanicsMaterial(t.material), vo, &state_);
         } catch (const Error& e) {
           throw Error(t.centreline_path, "", e.what());
         }

@@ -35,6 +35,11 @@ struct LoadedThin {
   std::vector<Eigen::Vector2i> segments;
   std::optional<SurfaceMesh> visual;  // shell's visual_mesh, when given
 };
+// Mesh-file coordinates to the world: scaled by the scene's mm_per_unit, then world_from_model.
+RowMatX3d PlaceInWorld(const RowMatX3d& points, const Scene& scene);
+// The scene's tissue parameters as the mechanics module's material.
+mechanics::Material ToMechanicsMaterial(const Material& m);
+
 // Reads the scene's thin structures (meshes scaled by mm_per_unit, world_from_model applied).
 // Throws arreg::Error naming the mesh file or the scene key (fixed vertex out of range, a
 // centreline that is not a tree, a shell with a negative Poisson ratio).
