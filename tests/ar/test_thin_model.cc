@@ -239,6 +239,47 @@ TEST(ThinModel, CutSeparatesTheSheet) {
   EXPECT_LT(cut, 0.1);
 }
 
+// A Y-shaped vessel tree (three branches meeting at one centreline vertex, tied there) cut
+// across its trunk by a plane: the trunk separates (its tube falls into two pieces, one frame
+// duplicated), a plane beyond the tree changes nothing, and the system still steps.
+TEST(ThinModel, VesselTreeIsCutAcrossOneBranch) {
+  const std::string dir = testing::ScratchDir("thin_vessel");
+  std::ofstream(dir + "/tree.obj") << "v 0 0 0\nv 20 0 0\nv 40 0 0\nv 60 10 0\nv 60 -10 0\n"
+                                      "l 1 2 3\nl 3 4\nl 3 5\n";
+  Scene scene;
+  scene.path = dir + "/scene.json";
+  ThinStructure t;
+  t.name = "vessel";
+  t.type = "vessel";
+  t.centreline_path = dir + "/tree.obj";
+  t.radius_mm = 1.5;
+  t.material.poisson_ratio = 0.0;
+  t.fixed_vertices = {0};
+  scene.thin_structures = {t};
+  const std::vector<LoadedThin> loaded = LoadThinStructures(scene);
+  mechanics::MechanicalState body{TetMesh(), mechanics::Material()};
+  mechanics::SpringEnergy springs;
+  ThinSystem thin(loaded, scene, &body, &springs, StepOptions());
+  EXPECT_EQ(thin.num_vessels(), 1);
+  const SurfaceMesh before = thin.Surfaces()[0];
+  EXPECT_EQ(before.num_vertices() % ThinSystem::kTubeSides, 0);
+  EXPECT_EQ(Components(before), 3);  // one tube per branch
+  // The plane x = 20 through the trunk (the polyline across it, seen along -z).
+  const ThinCutEvent ev = thin.Cut(
+      {}, {Eigen::Vector3d(20.3, -10, 0), Eigen::Vector3d(20.3, 10, 0)}, Eigen::Vector3d(0, 0, -1));
+  EXPECT_EQ(ev.vessels_cut, 1);
+  EXPECT_EQ(ev.vessel_frames_added, 1);
+  const SurfaceMesh after = thin.Surfaces()[0];
+  EXPECT_EQ(Components(after), 4);
+  EXPECT_EQ(after.num_vertices(), before.num_vertices() + ThinSystem::kTubeSides);
+  // A plane that misses every chord (beyond the tree's end) changes nothing.
+  const ThinCutEvent none = thin.Cut({}, {Eigen::Vector3d(80, -10, 0), Eigen::Vector3d(80, 10, 0)},
+                                     Eigen::Vector3d(0, 0, -1));
+  EXPECT_EQ(none.vessels_cut, 0);
+  for (int frame = 0; frame < 5; ++frame)
+    EXPECT_NE(thin.Step(&body).status, mechanics::StepStatus::kLinearSolveFailed);
+}
+
 // A shell tied to a tetrahedral block follows the block when the block's own feature springs
 // move it: one system, the ties carry the motion.
 TEST(ThinModel, ShellTiedToTheOrganFollowsIt) {
