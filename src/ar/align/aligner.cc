@@ -152,6 +152,20 @@ struct LandmarkResidual {
   }
 };
 
+// Keeps the centroid's depth (camera z) at the start's: one image cannot tell a larger organ
+// from a nearer one, so with a free scale the distance must come from the initial pose.
+struct DepthPrior {
+  const CameraModel* camera;
+  double depth_mm, weight_per_mm;
+  template <typename T>
+  bool operator()(const T* tau, T* r) const {
+    const double* R = camera->r;
+    const T z = R[6] * tau[0] + R[7] * tau[1] + R[8] * tau[2] + camera->t[2];
+    r[0] = weight_per_mm * (z - depth_mm);
+    return true;
+  }
+};
+
 struct Parameters {
   double omega[3], tau[3], log_scale[1];
 };
@@ -222,7 +236,7 @@ class Context {
   };
 
   // Extracts the contour at `params` and builds the residuals on it.
-  Built Build(Parameters* params) const {
+  Built Build(Parameters* params, double depth_mm) const {
     Built b;
     const ModelPose pose = ToPose(*params, centroid());
     ProjectedModel projected = ProjectModel(*in_.surface, *in_.camera, pose, o_.contour_spacing_px,
@@ -239,7 +253,14 @@ class Context {
     problem.AddParameterBlock(params->omega, 3);
     problem.AddParameterBlock(params->tau, 3);
     problem.AddParameterBlock(params->log_scale, 1);
-    if (!o_.estimate_scale) problem.SetParameterBlockConstant(params->log_scale);
+    if (!o_.estimate_scale) {
+      problem.SetParameterBlockConstant(params->log_scale);
+    } else {
+      // 0.01 mm of depth weighs as 1 px of the whole silhouette: the depth is held.
+      problem.AddResidualBlock(new ceres::AutoDiffCostFunction<DepthPrior, 1, 3>(new DepthPrior{
+                                   &camera_, depth_mm, 100.0 * std::sqrt(o_.silhouette_weight)}),
+                               nullptr, params->tau);
+    }
     if (in_.outline) {
       const Outline& outline = *in_.outline;
       ceres::LossFunction* contour_loss = MakeLoss(o_, 0.5 * o_.silhouette_weight / n_contour);
@@ -287,6 +308,11 @@ class Context {
     return b;
   }
 
+  // Camera z of the centroid (mm).
+  double Depth(const Parameters& p) const {
+    return (in_.camera->camera_from_world * Eigen::Vector3d(p.tau[0], p.tau[1], p.tau[2])).z();
+  }
+
   static double Cost(ceres::Problem* problem) {
     double cost = 0;
     problem->Evaluate(ceres::Problem::EvaluateOptions(), &cost, nullptr, nullptr, nullptr);
@@ -297,6 +323,7 @@ class Context {
     StartResult s;
     s.initial = initial;
     Parameters params = ToParameters(initial, centroid());
+    const double depth = Depth(params);
     ceres::Solver::Options so;
     so.linear_solver_type = ceres::DENSE_QR;
     so.max_num_iterations = o_.max_inner_iterations;
@@ -307,7 +334,7 @@ class Context {
     so.parameter_tolerance = 1e-10;
     const double radius = in_.surface->radius_mm();
     for (int outer = 0; outer < o_.max_outer_iterations; ++outer) {
-      Built b = Build(&params);
+      Built b = Build(&params, depth);
       if (!b.valid) return s;
       const Parameters before = params;
       ceres::Solve(so, b.problem.get(), last);
@@ -321,7 +348,7 @@ class Context {
                            radius;
       if (moved_deg < o_.converged_rotation_deg && moved < o_.converged_translation) break;
     }
-    Built b = Build(&params);
+    Built b = Build(&params, depth);
     if (!b.valid) return s;
     s.valid = true;
     s.final = ToPose(params, centroid());
@@ -332,7 +359,7 @@ class Context {
   // The final figures of a pose (contour re-extracted there).
   void Figures(const ModelPose& pose, AlignResult* r) const {
     Parameters params = ToParameters(pose, centroid());
-    Built b = Build(&params);
+    Built b = Build(&params, Depth(params));
     r->contour_to_outline = Stats(b.contour_abs);
     r->outline_to_contour = Stats(b.match_abs);
     r->landmarks = Stats(b.landmark_abs);
@@ -516,7 +543,9 @@ AlignResult Align(const AlignInput& in, const AlignOptions& o) {
   for (size_t k = 0; k < starts.size(); ++k) {
     r.starts.push_back(context.Run(starts[k], &summaries[k]));
     const StartResult& s = r.starts.back();
-    if (s.valid && (r.best_start < 0 || s.cost_after < r.starts[r.best_start].cost_after))
+    // Ties (starts reaching the same optimum) go to the earlier start: the given pose.
+    if (s.valid &&
+        (r.best_start < 0 || s.cost_after < (1 - 1e-9) * r.starts[r.best_start].cost_after))
       r.best_start = static_cast<int>(k);
   }
   if (r.best_start < 0) {
@@ -532,7 +561,7 @@ AlignResult Align(const AlignInput& in, const AlignOptions& o) {
   r.ceres_minimizer = ceres::MinimizerTypeToString(summary.minimizer_type);
   r.ceres_iterations = static_cast<int>(summary.iterations.size()) - 1;
   r.ceres_residuals = summary.num_residuals;
-  r.ceres_parameters = summary.num_effective_parameters;
+  r.ceres_parameters = summary.num_effective_parameters_reduced;
   r.ceres_initial_cost = summary.initial_cost;
   r.ceres_final_cost = summary.final_cost;
   r.ceres_time_s = summary.total_time_in_seconds;

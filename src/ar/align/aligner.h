@@ -25,7 +25,9 @@ struct Landmark {
 std::vector<Landmark> ReadLandmarks(const std::string& path);
 
 struct AlignOptions {
-  bool estimate_scale = false;        // also estimate a uniform scale, default off (rigid)
+  // Also estimate a uniform scale (default off: rigid). One image cannot tell a larger organ
+  // from a nearer one, so the centroid's distance from the camera is then held at the start's.
+  bool estimate_scale = false;
   std::string robust_loss = "huber";  // "huber", "cauchy" or "none", default huber
   double loss_scale_px = 2.0;         // px where the robust loss leaves the quadratic, default 2
   double contour_spacing_px = 3.0;    // distance between silhouette samples (px), default 3

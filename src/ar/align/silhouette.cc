@@ -88,7 +88,14 @@ Outline OutlineFromMask(const cv::Mat& input, const PinholeCamera& camera, doubl
       if (since_last < spacing_px) continue;
       const int x = contour[i].x, y = contour[i].y;
       if (x <= 0 || y <= 0 || x >= o.mask.cols - 1 || y >= o.mask.rows - 1) continue;
-      Eigen::Vector2d g(sdt(x + 1, y) - sdt(x - 1, y), sdt(x, y + 1) - sdt(x, y - 1));
+      // Sobel-like gradient over a 5 x 5 neighbourhood: the distances of a binary mask are
+      // quantised, a 3-point difference gives directions off by up to 30 degrees.
+      Eigen::Vector2d g = Eigen::Vector2d::Zero();
+      for (int k = -2; k <= 2; ++k) {
+        const double w = 3 - std::abs(k);
+        g.x() += w * (sdt(x + 2, y + k) - sdt(x - 2, y + k));
+        g.y() += w * (sdt(x + k, y + 2) - sdt(x + k, y - 2));
+      }
       if (g.norm() < 1e-9) continue;
       g.normalize();
       since_last = 0;
@@ -217,7 +224,31 @@ namespace {
 
 constexpr double kNearMm = 1.0;   // the model must lie this far in front of the camera
 constexpr double kProbePx = 2.0;  // how far beside a contour sample the mask is probed
-constexpr int kFillShift = 4;     // fixed-point bits of the filled vertex positions
+
+// Sets the pixels of `mask` whose centre lies in the triangle (p0, p1, p2) (pixel centres at
+// integer coordinates, as the ground-truth masks of render::RenderMask; OpenCV's polygon fill
+// also sets pixels the edges only touch, which would grow the silhouette by half a pixel).
+void FillTriangle(const Eigen::Vector2d& p0, const Eigen::Vector2d& p1, const Eigen::Vector2d& p2,
+                  cv::Mat* mask) {
+  const double area = (p1 - p0).x() * (p2 - p0).y() - (p1 - p0).y() * (p2 - p0).x();
+  if (area == 0) return;
+  const double sign = area > 0 ? 1.0 : -1.0;
+  const int x0 = std::max(0, static_cast<int>(std::ceil(std::min({p0.x(), p1.x(), p2.x()}))));
+  const int x1 =
+      std::min(mask->cols - 1, static_cast<int>(std::floor(std::max({p0.x(), p1.x(), p2.x()}))));
+  const int y0 = std::max(0, static_cast<int>(std::ceil(std::min({p0.y(), p1.y(), p2.y()}))));
+  const int y1 =
+      std::min(mask->rows - 1, static_cast<int>(std::floor(std::max({p0.y(), p1.y(), p2.y()}))));
+  auto edge = [&](const Eigen::Vector2d& a, const Eigen::Vector2d& b, double x, double y) {
+    return sign * ((b.x() - a.x()) * (y - a.y()) - (b.y() - a.y()) * (x - a.x()));
+  };
+  for (int y = y0; y <= y1; ++y) {
+    uint8_t* row = mask->ptr<uint8_t>(y);
+    for (int x = x0; x <= x1; ++x)
+      if (edge(p0, p1, x, y) >= 0 && edge(p1, p2, x, y) >= 0 && edge(p2, p0, x, y) >= 0)
+        row[x] = 255;
+  }
+}
 
 }  // namespace
 
@@ -242,24 +273,22 @@ ProjectedModel ProjectModel(const ModelSurface& surface, const PinholeCamera& ca
   out.mask = cv::Mat::zeros(height, width, CV_8U);
   const RowMatX3i& f = surface.faces();
   std::vector<char> front(f.rows());
-  const double fixed = (1 << kFillShift) * scale_px;
   const double offset = 0.5 * scale_px - 0.5;  // pixel centres: u' = (u + 0.5) s - 0.5
   // Image-plane extent beyond which faces are not drawn (distortion far outside the field of
-  // view is meaningless, and fixed-point coordinates must not overflow).
+  // view is meaningless).
   const double limit = 4.0 * std::max(camera.width, camera.height);
   for (int k = 0; k < f.rows(); ++k) {
     const Eigen::Vector3d n_k = surface.face_normals().row(k).transpose();
     front[k] = n_k.dot(eye_in_model - v.row(f(k, 0)).transpose()) > 0;
     if (!front[k]) continue;
-    cv::Point pts[3];
+    Eigen::Vector2d pts[3];
     bool drawable = true;
     for (int c = 0; c < 3; ++c) {
       const Eigen::Vector2d p = pixels.row(f(k, c)).transpose();
       if (std::fabs(p.x()) > limit || std::fabs(p.y()) > limit) drawable = false;
-      pts[c] = cv::Point(static_cast<int>(std::lround((p.x() + offset / scale_px) * fixed)),
-                         static_cast<int>(std::lround((p.y() + offset / scale_px) * fixed)));
+      pts[c] = p * scale_px + Eigen::Vector2d::Constant(offset);
     }
-    if (drawable) cv::fillConvexPoly(out.mask, pts, 3, cv::Scalar(255), cv::LINE_8, kFillShift);
+    if (drawable) FillTriangle(pts[0], pts[1], pts[2], &out.mask);
   }
   if (!with_contour || scale_px != 1.0) return out;
 
@@ -285,10 +314,14 @@ ProjectedModel ProjectModel(const ModelSurface& surface, const PinholeCamera& ca
       // On the outer contour exactly one side of the sample is outside the silhouette.
       const bool plus = outside(p + kProbePx * normal), minus = outside(p - kProbePx * normal);
       if (plus == minus) continue;
-      points.push_back(smooth_contour ? surface.EdgePoint(e, t)
-                                      : Eigen::Vector3d((1 - t) * v.row(e.a).transpose() +
-                                                        t * v.row(e.b).transpose()));
-      sample_pixels.push_back(p);
+      const Eigen::Vector3d point =
+          smooth_contour
+              ? surface.EdgePoint(e, t)
+              : Eigen::Vector3d((1 - t) * v.row(e.a).transpose() + t * v.row(e.b).transpose());
+      points.push_back(point);
+      // The exact image of the sample (a straight 3D edge is curved by perspective and
+      // distortion; the probe above only needs the chord).
+      sample_pixels.push_back(camera.ProjectFromCamera(a * point + b));
       normals.push_back(plus ? normal : Eigen::Vector2d(-normal));
     }
   }
