@@ -92,6 +92,19 @@ int Components(const SurfaceMesh& m) {
   return static_cast<int>(roots.size());
 }
 
+// A scene (in `dir`) of one vessel of radius 1.5 mm along the centreline file `name`.
+Scene VesselScene(const std::string& dir, const std::string& name) {
+  Scene scene;
+  scene.path = dir + "/scene.json";
+  ThinStructure t;
+  t.name = "vessel";
+  t.type = "vessel";
+  t.centreline_path = dir + "/" + name;
+  t.radius_mm = 1.5;
+  scene.thin_structures = {t};
+  return scene;
+}
+
 TEST(ThinModel, CentrelineReaderNamesBadInput) {
   const std::string dir = testing::ScratchDir("thin_centreline");
   const std::string path = dir + "/c.obj";
@@ -113,14 +126,7 @@ TEST(ThinModel, CentrelineReaderNamesBadInput) {
 TEST(ThinModel, LoadingRejectsLoopsAndBadFixedVertices) {
   const std::string dir = testing::ScratchDir("thin_load");
   std::ofstream(dir + "/loop.obj") << "v 0 0 0\nv 1 0 0\nv 0 1 0\nl 1 2 3 1\n";
-  Scene scene;
-  scene.path = dir + "/scene.json";
-  ThinStructure vessel;
-  vessel.name = "v";
-  vessel.type = "vessel";
-  vessel.centreline_path = dir + "/loop.obj";
-  vessel.radius_mm = 1;
-  scene.thin_structures = {vessel};
+  Scene scene = VesselScene(dir, "loop.obj");
   EXPECT_THROW(LoadThinStructures(scene), Error);
   WriteSurfaceMesh(dir + "/sheet.obj", Sheet(10, 2));
   ThinStructure shell;
@@ -246,16 +252,9 @@ TEST(ThinModel, VesselTreeIsCutAcrossOneBranch) {
   const std::string dir = testing::ScratchDir("thin_vessel");
   std::ofstream(dir + "/tree.obj") << "v 0 0 0\nv 20 0 0\nv 40 0 0\nv 60 10 0\nv 60 -10 0\n"
                                       "l 1 2 3\nl 3 4\nl 3 5\n";
-  Scene scene;
-  scene.path = dir + "/scene.json";
-  ThinStructure t;
-  t.name = "vessel";
-  t.type = "vessel";
-  t.centreline_path = dir + "/tree.obj";
-  t.radius_mm = 1.5;
-  t.material.poisson_ratio = 0.0;
-  t.fixed_vertices = {0};
-  scene.thin_structures = {t};
+  Scene scene = VesselScene(dir, "tree.obj");
+  scene.thin_structures[0].material.poisson_ratio = 0.0;
+  scene.thin_structures[0].fixed_vertices = {0};
   const std::vector<LoadedThin> loaded = LoadThinStructures(scene);
   mechanics::MechanicalState body{TetMesh(), mechanics::Material()};
   mechanics::SpringEnergy springs;
