@@ -122,9 +122,11 @@ int RunBenchAlign(int argc, char** argv) {
   align::AlignOptions options;
   parser.AddDouble("silhouette-weight", &options.silhouette_weight, "W",
                    "weight of the silhouette relative to one landmark");
-  parser.AddFlag("smooth-contour", &options.smooth_contour,
-                 "contour on the smooth surface through the vertices (AlignOptions)");
+  bool chord_contour = false;
+  parser.AddFlag("chord-contour", &chord_contour,
+                 "contour on the mesh's straight edges, not the smooth surface (AlignOptions)");
   if (!parser.Parse(argc, argv)) return 0;
+  if (chord_contour) options.smooth_contour = false;
   seed = static_cast<uint64_t>(seed_int);
   if (runs < 1) throw UsageError("--runs", "must be >= 1");
 

@@ -1,7 +1,6 @@
 // align acceptance (label slow): 100 seeded perturbations of up to 20 deg and 20 mm of the
 // kidney-cut and band-stretch poses. Outline alone: >= 90 % within 2 deg / 2 mm at the
-// centroid (the band; the kidney's coarse model misses it, docs/align.md); with 4 landmarks
-// (0.25 px noise): 100 % within 1 deg / 1 mm on both.
+// centroid; with 4 landmarks (0.25 px noise): 100 % within 1 deg / 1 mm.
 #include <gtest/gtest.h>
 
 #include <random>
@@ -12,7 +11,7 @@
 namespace arreg::align {
 namespace {
 
-void CheckHundred(const std::string& scenario, bool check_outline) {
+void CheckHundred(const std::string& scenario) {
   const testing::AlignScene& s = testing::GetAlignScene(scenario);
   int outline_ok = 0, landmarks_ok = 0;
   constexpr int kRuns = 100;
@@ -26,14 +25,12 @@ void CheckHundred(const std::string& scenario, bool check_outline) {
     const TrialResult b = RunPerturbedTrial(with, AlignOptions(), s.truth, 20, 20, &rng);
     landmarks_ok += b.fits && b.rotation_error_deg <= 1 && b.translation_error_mm <= 1;
   }
-  if (check_outline) {
-    EXPECT_GE(outline_ok, 90) << scenario;
-  }
+  EXPECT_GE(outline_ok, 90) << scenario;
   EXPECT_EQ(landmarks_ok, kRuns) << scenario;
 }
 
-TEST(AlignAcceptance, Kidney100) { CheckHundred("kidney-cut", false); }
-TEST(AlignAcceptance, Band100) { CheckHundred("band-stretch", true); }
+TEST(AlignAcceptance, Kidney100) { CheckHundred("kidney-cut"); }
+TEST(AlignAcceptance, Band100) { CheckHundred("band-stretch"); }
 
 }  // namespace
 }  // namespace arreg::align
