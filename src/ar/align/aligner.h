@@ -39,9 +39,9 @@ struct AlignOptions {
   // Weight of the whole silhouette (both directions together) relative to one landmark:
   // each direction's residuals are averaged, so the weight does not grow with the image size.
   // The contour's samples are strongly correlated (one model error moves a whole stretch), so
-  // the outline counts as a few independent points, not hundreds. Default 8: over 30 starts on
-  // the kidney and band scenes with 4 landmarks at 0.5 px noise, 4 and 8 give 93-100 % within
-  // 1 deg / 1 mm and 1 or 64 fail one scene (docs/align.md).
+  // the outline counts as a few independent points, not hundreds. Default 8: with 4 landmarks
+  // at 0.5 px noise, 4 lets them tilt the band beyond 1 deg, 8 and 16 keep both synthetic
+  // scenes within 1 deg / 1 mm (docs/align.md).
   double silhouette_weight = 8.0;  // default 8
   double landmark_weight = 1.0;    // per landmark, default 1
   int max_outer_iterations = 30;   // contour re-extractions per start, default 30
