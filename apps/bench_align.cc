@@ -25,27 +25,6 @@ namespace arreg::cli {
 
 namespace {
 
-struct LoadedScene {
-  std::string name;
-  Scene scene;
-  std::unique_ptr<align::ModelSurface> surface;
-  std::unique_ptr<align::Outline> outline;
-  align::ModelPose truth;
-};
-
-LoadedScene Load(const std::string& name, const std::string& dir, double spacing_px) {
-  LoadedScene s;
-  s.name = name;
-  ReadSceneOptions options;
-  options.check_files_exist = false;
-  s.scene = ReadScene(dir + "/scene.json", options);
-  s.surface = std::make_unique<align::ModelSurface>(align::LoadModelSurface(s.scene));
-  s.outline = std::make_unique<align::Outline>(
-      align::ReadOutline(dir + "/gt/masks/000000.png", s.scene.camera, spacing_px));
-  s.truth = align::ModelPose::FromRigid(s.scene.world_from_model);
-  return s;
-}
-
 std::string EnsureScene(const std::string& scenario, const std::string& given,
                         const std::string& work) {
   if (!given.empty()) return given;
@@ -150,10 +129,10 @@ int RunBenchAlign(int argc, char** argv) {
   }
 
   CreateDirectories(work);
-  LoadedScene scenes[2] = {
-      Load("kidney-cut", EnsureScene("kidney-cut", kidney_dir, work), options.contour_spacing_px),
-      Load("band-stretch", EnsureScene("band-stretch", band_dir, work),
-           options.contour_spacing_px)};
+  const std::string names[2] = {"kidney-cut", "band-stretch"};
+  const align::SceneCase scenes[2] = {
+      align::LoadSceneCase(EnsureScene(names[0], kidney_dir, work), options.contour_spacing_px),
+      align::LoadSceneCase(EnsureScene(names[1], band_dir, work), options.contour_spacing_px)};
   nlohmann::json out = {{"runs", runs},
                         {"max_deg", max_deg},
                         {"max_mm", max_mm},
@@ -161,27 +140,19 @@ int RunBenchAlign(int argc, char** argv) {
                         {"landmark_noise_px", landmark_noise_px},
                         {"seed", seed_int}};
   for (int i = 0; i < 2; ++i) {
-    LoadedScene& s = scenes[i];
-    const LoadedScene& other = scenes[1 - i];
-    align::AlignInput input;
-    input.camera = &s.scene.camera;
-    input.surface = s.surface.get();
-    input.outline = s.outline.get();
+    const align::SceneCase& s = scenes[i];
+    const align::SceneCase& other = scenes[1 - i];
+    const align::AlignInput input = s.Input();
     std::vector<align::TrialResult> outline_only, with_landmarks;
     std::vector<double> cpu_ms;
     for (int k = 0; k < runs; ++k) {
       std::mt19937_64 rng(seed + k);
-      const double t0 = ThreadCpuMs();
-      outline_only.push_back(
-          align::RunPerturbedTrial(input, options, s.truth, max_deg, max_mm, &rng));
-      cpu_ms.push_back(ThreadCpuMs() - t0);
-      align::AlignInput with = input;
-      with.landmarks =
-          align::SyntheticLandmarks(*s.surface, s.scene.camera, s.truth, s.outline->mask,
-                                    landmark_count, landmark_noise_px, &rng);
-      with_landmarks.push_back(
-          align::RunPerturbedTrial(with, options, s.truth, max_deg, max_mm, &rng));
-      std::fprintf(stderr, "\r%s %d/%d", s.name.c_str(), k + 1, runs);
+      const align::TrialPair t =
+          align::RunTrialPair(s, options, max_deg, max_mm, landmark_count, landmark_noise_px, &rng);
+      outline_only.push_back(t.outline_only);
+      with_landmarks.push_back(t.with_landmarks);
+      cpu_ms.push_back(1000 * t.outline_only.cpu_seconds);
+      std::fprintf(stderr, "\r%s %d/%d", names[i].c_str(), k + 1, runs);
     }
     std::fprintf(stderr, "\n");
     // The other organ's outline, from this scene's true pose: must be refused.
@@ -201,27 +172,27 @@ int RunBenchAlign(int argc, char** argv) {
     std::printf(
         "%s (%dx%d): outline only: %.0f %% within 2 deg/2 mm (target >= 90 %%; median %.3f deg, "
         "%.3f mm; max %.2f deg, %.2f mm), %.0f ms CPU per frame (median)\n",
-        s.name.c_str(), s.scene.camera.width, s.scene.camera.height,
+        names[i].c_str(), s.scene.camera.width, s.scene.camera.height,
         100 * a["success_rate"].get<double>(), a["median_rotation_error_deg"].get<double>(),
         a["median_translation_error_mm"].get<double>(), a["max_rotation_error_deg"].get<double>(),
         a["max_translation_error_mm"].get<double>(), Median(cpu_ms));
     std::printf(
         "%s: + %d landmarks: %.0f %% within 1 deg/1 mm (target 100 %%; median %.3f deg, %.3f mm; "
         "max %.2f deg, %.2f mm)\n",
-        s.name.c_str(), landmark_count, 100 * b["success_rate"].get<double>(),
+        names[i].c_str(), landmark_count, 100 * b["success_rate"].get<double>(),
         b["median_rotation_error_deg"].get<double>(),
         b["median_translation_error_mm"].get<double>(), b["max_rotation_error_deg"].get<double>(),
         b["max_translation_error_mm"].get<double>());
-    std::printf("%s: %s's outline: %s (IoU %.3f)\n", s.name.c_str(), other.name.c_str(),
+    std::printf("%s: %s's outline: %s (IoU %.3f)\n", names[i].c_str(), names[1 - i].c_str(),
                 wrong_result.fits ? "ACCEPTED (wrong)" : "refused", wrong_result.iou);
     std::printf(
         "%s: search without initial pose: %.2f deg, %.2f mm, %s%s, %d of %zu starts at the "
         "optimum, %.0f ms CPU\n",
-        s.name.c_str(), align::RotationErrorDeg(found.pose, s.truth),
+        names[i].c_str(), align::RotationErrorDeg(found.pose, s.truth),
         align::PointErrorMm(found.pose, s.truth, s.surface->centroid()),
         found.fits ? "fits" : "refused", found.ambiguous ? " (ambiguous)" : "",
         found.starts_at_optimum, found.starts.size(), search_ms);
-    out[s.name] = {
+    out[names[i]] = {
         {"outline_only", a},
         {"with_landmarks", b},
         {"cpu_ms_per_frame_median", Median(cpu_ms)},

@@ -204,12 +204,9 @@ void CheckPerturbed(const std::string& scenario, int runs) {
   int outline_ok = 0, landmarks_ok = 0;
   for (int k = 0; k < runs; ++k) {
     std::mt19937_64 rng(1000 + k);
-    const TrialResult a = RunPerturbedTrial(s.Input(), AlignOptions(), s.truth, 20, 20, &rng);
+    const TrialPair t = RunTrialPair(s, AlignOptions(), 20, 20, 4, 0.25, &rng);
+    const TrialResult &a = t.outline_only, &b = t.with_landmarks;
     outline_ok += a.fits && a.rotation_error_deg <= 2 && a.translation_error_mm <= 2;
-    AlignInput with = s.Input();
-    with.landmarks =
-        SyntheticLandmarks(*s.surface, s.scene.camera, s.truth, s.outline->mask, 4, 0.25, &rng);
-    const TrialResult b = RunPerturbedTrial(with, AlignOptions(), s.truth, 20, 20, &rng);
     EXPECT_TRUE(b.fits && b.rotation_error_deg <= 1 && b.translation_error_mm <= 1)
         << scenario << " run " << k << ": " << b.rotation_error_deg << " deg, "
         << b.translation_error_mm << " mm";

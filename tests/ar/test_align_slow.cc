@@ -17,12 +17,9 @@ void CheckHundred(const std::string& scenario) {
   constexpr int kRuns = 100;
   for (int k = 0; k < kRuns; ++k) {
     std::mt19937_64 rng(k + 1);
-    const TrialResult a = RunPerturbedTrial(s.Input(), AlignOptions(), s.truth, 20, 20, &rng);
+    const TrialPair t = RunTrialPair(s, AlignOptions(), 20, 20, 4, 0.25, &rng);
+    const TrialResult &a = t.outline_only, &b = t.with_landmarks;
     outline_ok += a.fits && a.rotation_error_deg <= 2 && a.translation_error_mm <= 2;
-    AlignInput with = s.Input();
-    with.landmarks =
-        SyntheticLandmarks(*s.surface, s.scene.camera, s.truth, s.outline->mask, 4, 0.25, &rng);
-    const TrialResult b = RunPerturbedTrial(with, AlignOptions(), s.truth, 20, 20, &rng);
     landmarks_ok += b.fits && b.rotation_error_deg <= 1 && b.translation_error_mm <= 1;
   }
   EXPECT_GE(outline_ok, 90) << scenario;

@@ -1,7 +1,9 @@
 #include "ar/align/align_eval.h"
 
+#include <ctime>
 #include <limits>
 
+#include "ar/align/align_job.h"
 #include "core/error.h"
 
 namespace arreg::align {
@@ -58,13 +60,48 @@ TrialResult RunPerturbedTrial(AlignInput input, const AlignOptions& options, con
                               double max_deg, double max_mm, std::mt19937_64* rng) {
   const Eigen::Vector3d c = input.surface->centroid();
   input.initial_pose = PerturbPose(truth, c, max_deg, max_mm, rng);
+  const std::clock_t start = std::clock();
   const AlignResult r = Align(input, options);
+  const double cpu_seconds = static_cast<double>(std::clock() - start) / CLOCKS_PER_SEC;
   TrialResult t;
   t.rotation_error_deg = RotationErrorDeg(r.pose, truth);
   t.translation_error_mm = PointErrorMm(r.pose, truth, c);
   t.fits = r.fits;
   t.seconds = r.seconds;
+  t.cpu_seconds = cpu_seconds;
   return t;
+}
+
+AlignInput SceneCase::Input() const {
+  AlignInput in;
+  in.camera = &scene.camera;
+  in.surface = surface.get();
+  in.outline = outline.get();
+  return in;
+}
+
+SceneCase LoadSceneCase(const std::string& dir, double spacing_px) {
+  SceneCase c;
+  c.dir = dir;
+  ReadSceneOptions options;
+  options.check_files_exist = false;  // scenes made with --no-video
+  c.scene = ReadScene(dir + "/scene.json", options);
+  c.surface = std::make_unique<ModelSurface>(LoadModelSurface(c.scene));
+  c.outline = std::make_unique<Outline>(
+      ReadOutline(dir + "/gt/masks/000000.png", c.scene.camera, spacing_px));
+  c.truth = ModelPose::FromRigid(c.scene.world_from_model);
+  return c;
+}
+
+TrialPair RunTrialPair(const SceneCase& c, const AlignOptions& options, double max_deg,
+                       double max_mm, int landmarks, double noise_px, std::mt19937_64* rng) {
+  TrialPair p;
+  p.outline_only = RunPerturbedTrial(c.Input(), options, c.truth, max_deg, max_mm, rng);
+  AlignInput with = c.Input();
+  with.landmarks = SyntheticLandmarks(*c.surface, c.scene.camera, c.truth, c.outline->mask,
+                                      landmarks, noise_px, rng);
+  p.with_landmarks = RunPerturbedTrial(with, options, c.truth, max_deg, max_mm, rng);
+  return p;
 }
 
 }  // namespace arreg::align
