@@ -44,6 +44,10 @@ TEST_P(ScenarioAtDefaultSize, GeneratesAConsistentScene) {
   EXPECT_EQ(scene.camera.width, 640);
   EXPECT_EQ(scene.camera.height, 512);
   EXPECT_EQ(scene.internal_structures.size(), name == "kidney-cut" ? 1u : 0u);
+  // Membranes: a shell and no tet model; vessel-cut: the organ and its vessel.
+  const bool membrane = name.rfind("membrane-", 0) == 0;
+  EXPECT_EQ(scene.thin_structures.size(), membrane || name == "vessel-cut" ? 1u : 0u);
+  EXPECT_EQ(scene.model_mesh_path.empty(), membrane);
   VideoReader video;
   video.Open(scene.video_path);
   int frames = 0;
@@ -54,7 +58,8 @@ TEST_P(ScenarioAtDefaultSize, GeneratesAConsistentScene) {
 
 INSTANTIATE_TEST_SUITE_P(AllScenarios, ScenarioAtDefaultSize,
                          ::testing::Values("band-stretch", "band-precut-side", "band-precut-middle",
-                                           "band-cut-v", "band-cut-s", "kidney-cut"),
+                                           "band-cut-v", "band-cut-s", "kidney-cut", "membrane-cut",
+                                           "membrane-tear", "vessel-cut"),
                          [](const auto& info) {
                            std::string n = info.param;
                            for (char& c : n)
