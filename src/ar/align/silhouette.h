@@ -49,7 +49,7 @@ struct Outline {
 Outline OutlineFromMask(const cv::Mat& mask, const PinholeCamera& camera, double spacing_px,
                         const std::string& file);
 // Reads an outline: a PNG/other image read as grey (inside > 127), or a JSON file
-// {"polygons": [[[u, v], ...], ...]} of closed polygons in pixels (filled, even-odd).
+// {"polygons": [[[u, v], ...], ...]} of closed polygons in pixels (each filled).
 Outline ReadOutline(const std::string& path, const PinholeCamera& camera, double spacing_px);
 
 // The closed boundary surface of the model with its edge-face adjacency, in the model frame (mm).
