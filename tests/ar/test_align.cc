@@ -233,6 +233,26 @@ TEST(AlignScenes, WrongOrganIsRefused) {
   }
 }
 
+// Without an initial pose the search must find the truth or say that it may be elsewhere:
+// both organs have near-symmetric outlines in their views.
+TEST(AlignScenes, SearchFindsThePoseOrReportsTheAmbiguity) {
+  for (const std::string scenario : {"kidney-cut", "band-stretch"}) {
+    const testing::AlignScene& s = GetAlignScene(scenario);
+    const AlignResult r = Align(s.Input(), AlignOptions());
+    EXPECT_TRUE(r.fits) << scenario << ": " << r.failure;
+    const bool found = RotationErrorDeg(r.pose, s.truth) <= 2 &&
+                       PointErrorMm(r.pose, s.truth, s.surface->centroid()) <= 2;
+    EXPECT_TRUE(found || r.ambiguous)
+        << scenario << ": " << RotationErrorDeg(r.pose, s.truth) << " deg off";
+    // The pose near the truth is among the starts' results.
+    bool near_truth = false;
+    for (const StartResult& start : r.starts)
+      near_truth |= start.valid && RotationErrorDeg(start.final, s.truth) <= 2 &&
+                    PointErrorMm(start.final, s.truth, s.surface->centroid()) <= 2;
+    EXPECT_TRUE(near_truth) << scenario;
+  }
+}
+
 TEST(AlignScenes, JobWritesOutputsOrNothing) {
   const testing::AlignScene& band = GetAlignScene("band-stretch");
   const testing::AlignScene& kidney = GetAlignScene("kidney-cut");

@@ -539,14 +539,33 @@ AlignResult Align(const AlignInput& in, const AlignOptions& o) {
   }
 
   AlignResult r;
-  std::vector<ceres::Solver::Summary> summaries(starts.size());
-  for (size_t k = 0; k < starts.size(); ++k) {
-    r.starts.push_back(context.Run(starts[k], &summaries[k]));
+  std::vector<ceres::Solver::Summary> summaries;
+  auto run = [&](const ModelPose& start) {
+    summaries.emplace_back();
+    r.starts.push_back(context.Run(start, &summaries.back()));
     const StartResult& s = r.starts.back();
     // Ties (starts reaching the same optimum) go to the earlier start: the given pose.
     if (s.valid &&
         (r.best_start < 0 || s.cost_after < (1 - 1e-9) * r.starts[r.best_start].cost_after))
-      r.best_start = static_cast<int>(k);
+      r.best_start = static_cast<int>(r.starts.size()) - 1;
+  };
+  for (const ModelPose& start : starts) run(start);
+  if (!in.initial_pose && r.best_start >= 0 && in.landmarks.size() < 4) {
+    // A silhouette hardly changes when a near-symmetric organ turns half a turn about the
+    // viewing direction or an image axis; the search's grid may miss these poses, so they are
+    // refined from the best one and take part in the ambiguity check below.
+    const ModelPose best = r.starts[r.best_start].final;
+    const Eigen::Vector3d center = best.Apply(in.surface->centroid());
+    const Eigen::Matrix3d world_from_camera = in.camera->camera_from_world.linear().transpose();
+    for (int axis = 0; axis < 3; ++axis) {
+      const Eigen::Matrix3d turn = world_from_camera *
+                                   Eigen::AngleAxisd(M_PI, Eigen::Vector3d::Unit(axis)) *
+                                   world_from_camera.transpose();
+      ModelPose p = best;
+      p.rotation = turn * best.rotation;
+      p.translation_mm = turn * (best.translation_mm - center) + center;
+      run(p);
+    }
   }
   if (r.best_start < 0) {
     r.failure = "no start converged with the model in front of the camera";
