@@ -90,7 +90,9 @@ struct SweepMesh {
 };
 
 struct SweepOptions {
-  int num_cuts = 1000;     // cuts in all (>= 1); default 1000
+  // Cuts drawn (>= 1; default 1000): the sequences' lengths sum to it. Fewer are made when
+  // sequences end early (max_tetrahedra, a violation).
+  int num_cuts = 1000;
   std::uint64_t seed = 1;  // default 1
   RandomCutOptions cuts;
   // Directory for the offending cases (one folder each, see SaveCase); "" = none. Default "".
@@ -136,7 +138,7 @@ struct SweepResult {
 };
 
 // Cuts the meshes in turn, in sequences of 1..max_cuts_per_sequence cuts (each on the mesh the
-// previous ones left), num_cuts in all. Sequence s runs on mesh s mod #meshes with its length
+// previous ones left), num_cuts drawn in all. Sequence s runs on mesh s mod #meshes with its length
 // and generator seeded from (seed, s), so (seed, s) reproduces it. After every cut:
 // CheckMeshInvariants (positive elements, conforming, manifold boundary), every element's rest
 // volume positive as the mechanics compute it (zero-volume), rest volume to 1e-9

@@ -1059,6 +1059,27 @@ CutSummary CutEvent::Run(CutChange* change) {
   for (int t : candidates)
     for (int v : m_.tets_[t])
       if (!marked_[v] && DistanceToSurface(m_.current_[v], nullptr) <= on_tol) marked_[v] = 1;
+  // A vertex closer to S than min_barycentric x its shortest edge counts as on S as well: no
+  // crossing can be placed nearer to it (crossings and inserted vertices are kept at barycentric
+  // coordinates >= min_barycentric), and crossing its edges there nests such pieces into
+  // elements of normalised volume ~min_barycentric^2 in one event, which the mechanics cannot
+  // solve (CHOLMOD finds the matrix not positive definite).
+  {
+    std::unordered_map<int, double> shortest;
+    for (int t : candidates) {
+      const Tet& q = m_.tets_[t];
+      for (const auto& e : kEdgeLocal) {
+        const double l = (m_.current_[q[e[0]]] - m_.current_[q[e[1]]]).norm();
+        for (int v : {q[e[0]], q[e[1]]}) {
+          auto it = shortest.emplace(v, l).first;
+          it->second = std::min(it->second, l);
+        }
+      }
+    }
+    for (const auto& [v, l] : shortest)
+      if (!marked_[v] && DistanceToSurface(m_.current_[v], nullptr) <= opt_.min_barycentric * l)
+        marked_[v] = 1;
+  }
   // An element whose four vertices all count as on S lies inside the tolerance slab: S runs
   // through it, but Separate never unsews a face of such an element, so it would bridge the
   // two sides (a spanning S leaving the body in one piece). Its vertex farthest from S is

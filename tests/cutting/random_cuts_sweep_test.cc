@@ -29,7 +29,10 @@ TEST(RandomCutSweep, ThousandCutsWithoutViolation) {
   ASSERT_TRUE(WIFEXITED(status)) << output;
   EXPECT_EQ(WEXITSTATUS(status), 0) << output;
   const nlohmann::json j = nlohmann::json::parse(arreg::ReadFileToString(dir + "/sweep.json"));
-  EXPECT_EQ(j.at("cuts").get<int>(), 1000);
+  // Sequences end early once a mesh has 10,000 elements (about half the cuts drawn are not made,
+  // docs/cutting.md) and at a violation.
+  EXPECT_LE(j.at("cuts").get<int>(), 1000);
+  EXPECT_GE(j.at("cuts").get<int>(), 300);
   EXPECT_EQ(j.at("violations").get<int>(), 0) << j.at("violation_list").dump(2);
   EXPECT_TRUE(j.at("per_mesh").contains("kidney"));
   EXPECT_TRUE(j.at("per_mesh").contains("beam"));
@@ -40,7 +43,7 @@ TEST(RandomCutSweep, ThousandCutsWithoutViolation) {
     EXPECT_GT(j["per_kind"][kind].at("crossed").get<int>(), 0) << kind;
     crossed += j["per_kind"][kind].at("crossed").get<int>();
   }
-  EXPECT_GT(crossed, 700);
+  EXPECT_GT(crossed, 0.7 * j.at("cuts").get<int>());
 }
 
 }  // namespace
