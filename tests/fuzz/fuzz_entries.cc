@@ -13,6 +13,7 @@
 #include "core/mesh_io.h"
 #include "core/mesh_ops.h"
 #include "core/opencv_yaml.h"
+#include "core/run_records.h"
 #include "core/scene.h"
 #include "tracking/video_io.h"
 
@@ -42,6 +43,11 @@ void ReadCamera(const std::string& path) { ReadCameraFile(path); }
 
 void ReadYaml(const std::string& path) { ParseOpenCvYamlFile(path); }
 
+// A run folder's records and a ground truth's meta.json, as `arreg eval` reads them.
+void ReadRun(const std::string& path) { ReadRunSummary(path); }
+void ReadFrames(const std::string& path) { ReadFrameRecords(path, 3); }
+void ReadMeta(const std::string& path) { ReadGroundTruthMeta(path); }
+
 // A container and stream read to the end, as `arreg run` does.
 void ReadVideo(const std::string& path) {
   VideoReader reader;
@@ -63,11 +69,12 @@ std::string TempPath(const Target& target) {
 
 const std::vector<Target>& Targets() {
   static const std::vector<Target> targets = {
-      {"msh", ".msh", ReadMesh},       {"vtk", ".vtk", ReadMesh},
-      {"obj", ".obj", ReadMesh},       {"stl", ".stl", ReadMesh},
-      {"off", ".off", ReadMesh},       {"scene", ".json", ReadSceneFile},
-      {"camera", ".json", ReadCamera}, {"yaml", ".yaml", ReadYaml},
-      {"video", ".mp4", ReadVideo},
+      {"msh", ".msh", ReadMesh},        {"vtk", ".vtk", ReadMesh},
+      {"obj", ".obj", ReadMesh},        {"stl", ".stl", ReadMesh},
+      {"off", ".off", ReadMesh},        {"scene", ".json", ReadSceneFile},
+      {"camera", ".json", ReadCamera},  {"yaml", ".yaml", ReadYaml},
+      {"video", ".mp4", ReadVideo},     {"run", ".json", ReadRun},
+      {"frames", ".jsonl", ReadFrames}, {"meta", ".json", ReadMeta},
   };
   return targets;
 }
@@ -159,6 +166,18 @@ int WriteSeeds(const Target& target, const std::string& dir) {
          "image_width: 640\nimage_height: 480\ncamera_name: c\ncamera_matrix:\n  rows: 3\n"
          "  cols: 3\n  data: [500, 0, 320, 0, 500, 240, 0, 0, 1]\ndistortion_model: plumb_bob\n"
          "distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [0, 0, 0, 0, 0]\n");
+  } else if (target.name == "run") {
+    text("run.json", R"({"version": "0.1.0", "scene": "s.json", "camera": {"width": 640,
+  "height": 480, "fx": 500, "fy": 500, "cx": 320, "cy": 240}, "frames": 3, "topology": true,
+  "interrupted": false, "thin_structures": ["membrane", "vessel"], "cut_events": 0})");
+  } else if (target.name == "frames") {
+    text("frames.jsonl",
+         "{\"frame\": 0, \"feature_error_mean_mm\": 0.5, \"feature_error_max_mm\": 1.5, "
+         "\"cut_events\": [], \"ms\": {\"track\": 1.0}}\n"
+         "{\"frame\": 1, \"feature_error_mean_mm\": null, \"feature_error_max_mm\": null}\n\n"
+         "{\"frame\": 2, \"feature_error_mean_mm\": 1e-3, \"feature_error_max_mm\": 2}\n");
+  } else if (target.name == "meta") {
+    text("meta.json", R"({"frames": 50, "width": 640, "height": 512, "surface_every_k": 10})");
   }
   // Video seeds come from scripts/fuzz (the ffmpeg command line encodes them).
   return count;

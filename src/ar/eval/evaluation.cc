@@ -7,6 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
+#include <tuple>
 
 #include "ar/eval/dice.h"
 #include "core/error.h"
@@ -14,6 +15,7 @@
 #include "core/json_reader.h"
 #include "core/log.h"
 #include "core/mesh_io.h"
+#include "core/run_records.h"
 
 namespace arreg::eval {
 
@@ -107,46 +109,11 @@ std::optional<HausdorffFigures> Aggregate(const std::vector<FrameEvaluation>& fr
   return sum;
 }
 
-struct RunInfo {
-  PinholeCamera camera;
-  int frames = 0;
-  bool topology = true;
-  bool interrupted = false;
-  std::vector<std::string> thin_structures;  // run.json `thin_structures`, empty when absent
-};
-
-RunInfo ReadRunJson(const std::string& run_dir) {
+RunSummaryRecord ReadRunJson(const std::string& run_dir) {
   const std::string path = (fs::path(run_dir) / "run.json").string();
   ARREG_CHECK_INPUT(FileExists(path), path, "", "run summary is missing (is '", run_dir,
                     "' an `arreg run --out` directory?)");
-  const nlohmann::json root = ParseJsonFile(path);
-  ARREG_CHECK_INPUT(root.is_object(), path, "", "expected a JSON object");
-  RunInfo info;
-  ARREG_CHECK_INPUT(root.contains("camera"), path, "camera", "required key is missing");
-  JsonObjectReader camera_reader(root.at("camera"), path, "camera");
-  info.camera = ReadCameraJson(camera_reader);
-  ARREG_CHECK_INPUT(root.contains("frames"), path, "frames", "required key is missing");
-  ReadJsonValue(root.at("frames"), path, "frames", &info.frames);
-  ARREG_CHECK_INPUT(info.frames >= 1, path, "frames", "must be >= 1, got ", info.frames);
-  if (root.contains("topology") && !root.at("topology").is_null())
-    ReadJsonValue(root.at("topology"), path, "topology", &info.topology);
-  if (root.contains("interrupted") && !root.at("interrupted").is_null())
-    ReadJsonValue(root.at("interrupted"), path, "interrupted", &info.interrupted);
-  if (root.contains("thin_structures") && !root.at("thin_structures").is_null()) {
-    const nlohmann::json& names = root.at("thin_structures");
-    ARREG_CHECK_INPUT(names.is_array(), path, "thin_structures", "expected an array of names");
-    for (size_t i = 0; i < names.size(); ++i) {
-      const std::string key = "thin_structures[" + std::to_string(i) + "]";
-      ARREG_CHECK_INPUT(names[i].is_string() && !names[i].get<std::string>().empty(), path, key,
-                        "expected a non-empty name");
-      const std::string name = names[i].get<std::string>();
-      ARREG_CHECK_INPUT(std::find(info.thin_structures.begin(), info.thin_structures.end(), name) ==
-                            info.thin_structures.end(),
-                        path, key, "duplicate name '", name, "'");
-      info.thin_structures.push_back(name);
-    }
-  }
-  return info;
+  return ReadRunSummary(path);
 }
 
 // Per-frame feature errors from frames.jsonl (one object per processed frame).
@@ -154,38 +121,11 @@ void ReadFramesJsonl(const std::string& run_dir, int num_frames,
                      std::vector<FrameEvaluation>* frames) {
   const std::string path = (fs::path(run_dir) / "frames.jsonl").string();
   ARREG_CHECK_INPUT(FileExists(path), path, "", "per-frame log is missing");
-  std::istringstream in(ReadFileToString(path));
-  std::string line;
-  int line_number = 0, count = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
-    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    const std::string where = "line " + std::to_string(line_number);
-    nlohmann::json record;
-    try {
-      record = nlohmann::json::parse(line);
-    } catch (const nlohmann::json::parse_error& e) {
-      throw Error(path, where, std::string("invalid JSON: ") + e.what());
-    }
-    ARREG_CHECK_INPUT(record.is_object() && record.contains("frame"), path, where,
-                      "expected an object with a \"frame\" key");
-    int frame = -1;
-    ReadJsonValue(record.at("frame"), path, where + ": frame", &frame);
-    ARREG_CHECK_INPUT(frame == count, path, where, "expected frame ", count, ", got ", frame);
-    ARREG_CHECK_INPUT(count < num_frames, path, where, "more records than run.json's frames (",
-                      num_frames, ")");
-    FrameEvaluation& f = (*frames)[count];
-    for (const auto& [key, target] : {std::pair{"feature_error_mean_mm", &f.feature_error_mean_mm},
-                                      std::pair{"feature_error_max_mm", &f.feature_error_max_mm}}) {
-      if (!record.contains(key) || record.at(key).is_null()) continue;
-      double value = 0.0;
-      ReadJsonValue(record.at(key), path, where + ": " + key, &value);
-      *target = value;
-    }
-    ++count;
+  const std::vector<FrameRecord> records = ReadFrameRecords(path, num_frames);
+  for (size_t f = 0; f < records.size(); ++f) {
+    (*frames)[f].feature_error_mean_mm = records[f].feature_error_mean_mm;
+    (*frames)[f].feature_error_max_mm = records[f].feature_error_max_mm;
   }
-  ARREG_CHECK_INPUT(count == num_frames, path, "", "has ", count,
-                    " frame records but run.json says frames = ", num_frames);
 }
 
 // The objects `names` of the OBJ at `path`, in that order; throws naming the file and the
@@ -284,23 +224,19 @@ std::vector<std::pair<std::string, SurfaceMesh>> ReadObjObjects(const std::strin
 RunEvaluation EvaluateRun(const std::string& run_dir, const std::string& gt_dir,
                           const EvalOptions& options) {
   options.Check();
-  const RunInfo info = ReadRunJson(run_dir);
+  const RunSummaryRecord info = ReadRunJson(run_dir);
 
   const std::string meta_path = (fs::path(gt_dir) / "meta.json").string();
   ARREG_CHECK_INPUT(FileExists(meta_path), meta_path, "", "ground-truth metadata is missing (is '",
                     gt_dir, "' an `arreg synth` output directory?)");
-  const nlohmann::json meta = ParseJsonFile(meta_path);
-  ARREG_CHECK_INPUT(meta.is_object() && meta.contains("frames"), meta_path, "frames",
-                    "required key is missing");
-  int gt_frames = 0;
-  ReadJsonValue(meta.at("frames"), meta_path, "frames", &gt_frames);
-  for (const char* key : {"width", "height"}) {
-    if (!meta.contains(key)) continue;
-    int value = 0;
-    ReadJsonValue(meta.at(key), meta_path, key, &value);
-    const int expected = std::string(key) == "width" ? info.camera.width : info.camera.height;
-    ARREG_CHECK_INPUT(value == expected, meta_path, key, "ground truth has ", key, " ", value,
-                      " but the run camera (", run_dir, "/run.json) has ", expected);
+  const GroundTruthMeta meta = ReadGroundTruthMeta(meta_path);
+  const int gt_frames = meta.frames;
+  for (const auto& [key, value, expected] :
+       {std::tuple{"width", meta.width, info.camera.width},
+        std::tuple{"height", meta.height, info.camera.height}}) {
+    ARREG_CHECK_INPUT(!value || *value == expected, meta_path, key, "ground truth has ", key, " ",
+                      value.value_or(0), " but the run camera (", run_dir, "/run.json) has ",
+                      expected);
   }
   const std::string run_json = (fs::path(run_dir) / "run.json").string();
   ARREG_CHECK_INPUT(info.frames <= gt_frames, run_json, "frames", "run processed ", info.frames,
