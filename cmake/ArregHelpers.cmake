@@ -19,7 +19,9 @@ function(arreg_set_common_options target)
   endif()
   if(ARREG_SANITIZE)
     target_compile_options(${target} PRIVATE -fsanitize=address,undefined -fno-omit-frame-pointer
-                                             -fno-sanitize-recover=undefined)
+                                             -fno-sanitize-recover=undefined
+                                             # GCC 12 under ASan warns inside libstdc++'s <regex>.
+                                             $<$<CXX_COMPILER_ID:GNU>:-Wno-maybe-uninitialized>)
     target_link_options(${target} PRIVATE -fsanitize=address,undefined)
   endif()
   if(ARREG_FUZZ)
