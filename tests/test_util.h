@@ -2,7 +2,11 @@
 // skip cleanly when it is absent), scratch directories, and surface parts.
 #pragma once
 
+#include <sys/wait.h>
+
 #include <Eigen/Core>
+#include <array>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <string>
@@ -33,6 +37,25 @@ inline std::string ScratchDir(const std::string& name) {
   fs::remove_all(p);
   fs::create_directories(p);
   return p.string();
+}
+
+// What a shell command printed on stdout and how it ended.
+struct CommandResult {
+  bool exited = false;  // ended normally (not by a signal)
+  int status = -1;      // its exit status when it exited
+  std::string output;
+};
+// Runs `command` through the shell (append " 2>&1" to capture stderr too).
+inline CommandResult RunCommand(const std::string& command) {
+  CommandResult r;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return r;
+  std::array<char, 4096> buffer{};
+  while (fgets(buffer.data(), buffer.size(), pipe)) r.output += buffer.data();
+  const int status = pclose(pipe);
+  r.exited = WIFEXITED(status);
+  if (r.exited) r.status = WEXITSTATUS(status);
+  return r;
 }
 
 // The faces of `s` whose label (one per face) is `label`, on the same vertices.

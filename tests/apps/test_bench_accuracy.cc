@@ -2,10 +2,7 @@
 // runs, the JSON holds every metric, the synth no-cut scene has no false cut and the synth cut
 // scene's cut is found; the phantom scene runs or is skipped with its reason.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
-#include <array>
-#include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -24,14 +21,10 @@ TEST(BenchAccuracy, QuickSubsetFindsTheCutAndMakesNoFalseOne) {
   const std::string command = "cd " + std::string(ARREG_SOURCE_DIR) + " && " + binary +
                               " bench accuracy --quick --jobs 2 --cache " + dir + "/cache --json " +
                               json + " 2>&1";
-  std::string output;
-  FILE* pipe = popen(command.c_str(), "r");
-  ASSERT_NE(pipe, nullptr);
-  std::array<char, 4096> buffer{};
-  while (fgets(buffer.data(), buffer.size(), pipe)) output += buffer.data();
-  const int status = pclose(pipe);
-  ASSERT_TRUE(WIFEXITED(status)) << output;
-  EXPECT_EQ(WEXITSTATUS(status), 0) << output;
+  const arreg::testing::CommandResult run = arreg::testing::RunCommand(command);
+  const std::string& output = run.output;
+  ASSERT_TRUE(run.exited) << output;
+  EXPECT_EQ(run.status, 0) << output;
   ASSERT_TRUE(arreg::FileExists(json)) << output;
   const nlohmann::json j = arreg::ParseJsonFile(json);
 

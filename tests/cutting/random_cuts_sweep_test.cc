@@ -2,10 +2,7 @@
 // ../shared/data has them, the kidney with its internal structure, the beam) ends with no
 // violation, and its JSON holds the counts per kind.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
-#include <array>
-#include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -20,14 +17,10 @@ TEST(RandomCutSweep, ThousandCutsWithoutViolation) {
   const std::string dir = arreg::testing::ScratchDir("random_cut_sweep");
   const std::string command = binary + " bench cutting --random 1000 --seed 1 --json " + dir +
                               "/sweep.json --save-failures " + dir + "/failures 2>&1";
-  std::string output;
-  FILE* pipe = popen(command.c_str(), "r");
-  ASSERT_NE(pipe, nullptr);
-  std::array<char, 4096> buffer{};
-  while (fgets(buffer.data(), buffer.size(), pipe)) output += buffer.data();
-  const int status = pclose(pipe);
-  ASSERT_TRUE(WIFEXITED(status)) << output;
-  EXPECT_EQ(WEXITSTATUS(status), 0) << output;
+  const arreg::testing::CommandResult run = arreg::testing::RunCommand(command);
+  const std::string& output = run.output;
+  ASSERT_TRUE(run.exited) << output;
+  EXPECT_EQ(run.status, 0) << output;
   const nlohmann::json j = nlohmann::json::parse(arreg::ReadFileToString(dir + "/sweep.json"));
   // Sequences end early once a mesh has 10,000 elements (about half the cuts drawn are not made,
   // docs/cutting.md) and at a violation.
