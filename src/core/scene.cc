@@ -203,6 +203,12 @@ Scene ParseScene(const nlohmann::json& json, const std::string& path,
       scene.model_mesh_path = ReadPath(r, "mesh", scene, !has_thin, check, PathKind::kFile);
       if (auto placement = r.OptionalObject("world_from_model"))
         scene.world_from_model = ReadRigidTransformJson(*placement);
+      if (r.Optional("degree", &scene.model_degree)) {
+        if (scene.model_degree < 1 || scene.model_degree > 3)
+          r.Fail("degree", "must be 1, 2 or 3, got " + std::to_string(scene.model_degree));
+        if (scene.model_mesh_path.empty())
+          r.Fail("degree", "needs a model mesh (the degree is that of its tetrahedra)");
+      }
       r.Finish();
     }
   }
@@ -304,6 +310,7 @@ nlohmann::json SceneToJson(const Scene& scene, const std::string& directory) {
   if (!scene.model_mesh_path.empty()) {
     nlohmann::json model = {{"mesh", PathForWriting(scene.model_mesh_path, directory)}};
     if (!identity) model["world_from_model"] = RigidTransformToJson(scene.world_from_model);
+    if (scene.model_degree != 1) model["degree"] = scene.model_degree;
     j["model"] = model;
   } else if (!identity) {
     // Without a model mesh the placement still applies to the thin structures.

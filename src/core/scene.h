@@ -65,6 +65,9 @@ struct Scene {
   // Rigid placement of the model mesh (after unit scaling) in the world frame,
   // translation in mm. Identity when absent. Applies to thin structures too.
   Eigen::Isometry3d world_from_model = Eigen::Isometry3d::Identity();
+  // Polynomial degree of the organ's tetrahedra (`model.degree`): 1 (linear, the default),
+  // 2 or 3 (Bernstein-Bezier, docs/higher-order.md).
+  int model_degree = 1;
   std::vector<InternalStructure> internal_structures;
   std::vector<ThinStructure> thin_structures;
 

@@ -268,6 +268,35 @@ TEST(Scene, WriteThenReadGivesTheSameScene) {
   EXPECT_EQ(ReadScene(f.dir + "/sub/scene.json").video_path, original.video_path);
 }
 
+TEST(Scene, ModelDegreeParsesRoundTripsAndIsChecked) {
+  SceneFixture f("scene_degree");
+  EXPECT_EQ(ReadScene(f.Write(f.scene)).model_degree, 1);
+  // The default is not written, so degree-1 scenes stay as they were.
+  WriteScene(f.dir + "/d1.json", ReadScene(f.Write(f.scene)));
+  EXPECT_FALSE(ParseJsonFile(f.dir + "/d1.json")["model"].contains("degree"));
+  for (int degree : {2, 3}) {
+    json j = f.scene;
+    j["model"]["degree"] = degree;
+    const Scene s = ReadScene(f.Write(j));
+    EXPECT_EQ(s.model_degree, degree);
+    WriteScene(f.dir + "/written.json", s);
+    EXPECT_EQ(ParseJsonFile(f.dir + "/written.json")["model"]["degree"], degree);
+    EXPECT_EQ(ReadScene(f.dir + "/written.json").model_degree, degree);
+  }
+  const std::vector<std::pair<json, std::string>> cases = {
+      {0, "scene.json: model.degree: must be 1, 2 or 3, got 0"},
+      {4, "scene.json: model.degree: must be 1, 2 or 3, got 4"},
+      {2.5, "scene.json: model.degree: expected an integer"},
+      {"2", "scene.json: model.degree: expected an integer"},
+  };
+  for (const auto& [value, expected] : cases) {
+    json j = f.scene;
+    j["model"]["degree"] = value;
+    const std::string msg = ErrorMessage([&] { ReadScene(f.Write(j)); });
+    EXPECT_NE(msg.find(expected), std::string::npos) << value << " -> " << msg;
+  }
+}
+
 TEST(Scene, FileChecksCanBeTurnedOff) {
   SceneFixture f("scene_nocheck");
   json j = f.scene;
