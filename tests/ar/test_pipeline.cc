@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <string>
 #include <utility>
 
@@ -16,6 +17,7 @@
 #include "ar/render/rasterizer.h"
 #include "core/camera.h"
 #include "core/error.h"
+#include "core/geometry.h"
 #include "core/json_reader.h"
 #include "core/mesh_generators.h"
 #include "core/mesh_io.h"
@@ -467,6 +469,89 @@ TEST(Pipeline, OutputFitChangesWhatIsShownOnly) {
   // The saved meshes are the shown configuration.
   const TetMesh saved = ReadTetMesh(out + "/mesh/" + "000013.vtk");
   EXPECT_LT((saved.vertices - fit.shown.back()).cwiseAbs().maxCoeff(), 1e-5);
+}
+
+// model.degree 2 (docs/higher-order.md, "In the registration"): the box bent in its plane
+// (y += c x^2, growing over 10 frames, then held). The organ runs as straight-raised quadratic
+// Bernstein tetrahedra: what is shown and saved is the curved boundary's tessellation, which
+// at rest lies on the straight faces and after the bend leaves them (the edge control points
+// moved off the chords); it follows the bend as the linear model does. Degree 1 on the same
+// video shows its linear boundary. Topology changes are refused up front.
+class SurfaceProbe : public FrameObserver {
+ public:
+  void OnFrame(const FrameState& f) override {
+    surfaces.push_back(*f.surface);
+    linear.push_back(ExtractBoundary(f.state->CurrentMesh()));
+    spring_mean_mm.push_back(f.stats.spring_length_mean_mm);
+  }
+  std::vector<SurfaceMesh> surfaces, linear;
+  std::vector<double> spring_mean_mm;
+};
+
+// Largest distance of `points` from the triangles of `mesh` (brute force).
+double LargestDistance(const RowMatX3d& points, const SurfaceMesh& mesh) {
+  double worst = 0;
+  for (int i = 0; i < points.rows(); ++i) {
+    const Eigen::Vector3d p = points.row(i).transpose();
+    double best = std::numeric_limits<double>::infinity();
+    for (int t = 0; t < mesh.num_faces(); ++t) {
+      const Eigen::Vector3d q =
+          ClosestPointOnTriangle(p, mesh.vertices.row(mesh.faces(t, 0)).transpose(),
+                                 mesh.vertices.row(mesh.faces(t, 1)).transpose(),
+                                 mesh.vertices.row(mesh.faces(t, 2)).transpose());
+      best = std::min(best, (q - p).norm());
+    }
+    worst = std::max(worst, best);
+  }
+  return worst;
+}
+
+TEST(Pipeline, DegreeTwoShowsTheCurvedBoundaryAndFollowsABend) {
+  const int frames = 16;
+  BoxScene b =
+      MakeMovingBoxScene("pipeline_degree", frames, [](const Eigen::RowVector3d& p, int f) {
+        return Eigen::RowVector3d(p.x(), p.y() + 0.008 * p.x() * p.x() * std::min(f, 10) / 10.0,
+                                  p.z());
+      });
+  auto run = [&](int degree) {
+    Scene scene = b.scene;
+    scene.model_degree = degree;
+    PipelineOptions o = ReadPipelineOptions(scene);
+    o.render.enabled = false;
+    o.cutting.enabled = false;
+    o.mechanics.output_spring_factor = 0;  // degree 1 shows its dynamic state too
+    SurfaceProbe probe;
+    RegistrationPipeline pipe(scene, o);
+    pipe.AddObserver(&probe);
+    EXPECT_EQ(pipe.Run().frames, frames);
+    return probe;
+  };
+  const SurfaceProbe p2 = run(2), p1 = run(1);
+  // Degree 1 shows its linear boundary; degree 2 a finer tessellation (16 triangles a face).
+  EXPECT_EQ(p1.surfaces.back().vertices, p1.linear.back().vertices);
+  EXPECT_EQ(p2.surfaces.back().num_faces(), 16 * p2.linear.back().num_faces());
+  // At rest on the straight faces; bent, off them: the sagitta of a 10 mm edge under the
+  // 7.2 mm bend at x = 30 is 0.008 * 5^2 = 0.2 mm.
+  EXPECT_LT(LargestDistance(p2.surfaces.front().vertices, p2.linear.front()), 1e-9);
+  const double off = LargestDistance(p2.surfaces.back().vertices, p2.linear.back());
+  EXPECT_GT(off, 0.05);
+  EXPECT_LT(off, 1.0);
+  // Both follow the bend: springs short at the end.
+  EXPECT_LT(p2.spring_mean_mm.back(), 0.5);
+  EXPECT_LT(p1.spring_mean_mm.back(), 0.5);
+
+  Scene scene = b.scene;
+  scene.model_degree = 3;
+  PipelineOptions o = ReadPipelineOptions(scene);
+  o.cutting.enabled = true;
+  try {
+    RegistrationPipeline pipe(scene, o);
+    ADD_FAILURE() << "a degree-3 run with topology changes was accepted";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("model.degree"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("--no-topology"), std::string::npos) << msg;
+  }
 }
 
 TEST(Pipeline, StopFlagEndsTheRunWithCompleteOutputs) {

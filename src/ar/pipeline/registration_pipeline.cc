@@ -20,6 +20,7 @@
 #include "core/log.h"
 #include "core/mesh_io.h"
 #include "core/mesh_ops.h"
+#include "mechanics/curved_boundary.h"
 #include "mechanics/elastic_energy.h"
 #include "mechanics/embedding.h"
 #include "mechanics/integrator.h"
@@ -174,6 +175,11 @@ struct RegistrationPipeline::Impl {
 
 namespace {
 
+// Steps per edge of each boundary face's lattice when a degree-2/3 organ's curved surface is
+// tessellated for the overlay, the saved surfaces and the evaluation (16 triangles a face):
+// a quadratic edge of sagitta h leaves h / 16 between the chords and the curve.
+constexpr int kCurvedSubdivisions = 4;
+
 // Whether a feature with this history is due to be attached in `frame`: detected exactly
 // `after_frames` frames before and tracked in every frame since (re-identified ones too).
 bool ProbationPassed(const std::vector<TrackObservation>& history, int frame, int after_frames) {
@@ -232,6 +238,16 @@ RegistrationPipeline::RegistrationPipeline(const Scene& scene, const PipelineOpt
   for (int v : options.mechanics.fixed_vertices)
     ARREG_CHECK_INPUT(v < impl_->model.mesh.vertices.rows(), scene.path, "mechanics.fixed_vertices",
                       "index ", v, " >= vertex count ", impl_->model.mesh.vertices.rows());
+  // Degree 2 and 3 (docs/higher-order.md, "In the registration"): no quadratic cutting, so
+  // the run must not change topology; the thin structures' ties embed in linear tetrahedra.
+  if (scene.model_degree > 1) {
+    ARREG_CHECK_INPUT(!options.cutting.enabled, scene.path, "model.degree", "degree ",
+                      scene.model_degree,
+                      " elements cannot be cut (there is no quadratic cutting): run with "
+                      "--no-topology");
+    ARREG_CHECK_INPUT(impl_->model.thin.empty(), scene.path, "model.degree", "degree ",
+                      scene.model_degree, " is not available with thin_structures");
+  }
 }
 
 RegistrationPipeline::~RegistrationPipeline() = default;
@@ -291,10 +307,8 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
                                                : mechanics::LinearSolverType::kCholmodPcg;
   io.line_search = o.mechanics.line_search;
   mechanics::ImplicitEulerIntegrator integrator(io);
-  // Thin structures: the organ, shells, vessels and all springs in one generalised system.
-  const bool has_tets = state.num_tetrahedra() > 0;
-  std::optional<ThinSystem> thin;
-  if (!impl_->model.thin.empty()) {
+  // The run's step options for a generalised system (thin structures, degree 2 and 3).
+  const auto generalised_options = [&] {
     ThinSystemOptions to;
     to.integrator.dt_s = io.dt_s;
     to.integrator.substeps = io.substeps;
@@ -305,12 +319,39 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     to.integrator.rayleigh_stiffness_beta = io.rayleigh_stiffness_beta;
     to.integrator.linear_solver = io.linear_solver;
     to.integrator.line_search = io.line_search;
-    to.elastic = elastic_options;
     to.gravity_mm_per_s2 = o.mechanics.gravity_mm_per_s2;
+    return to;
+  };
+  // Thin structures: the organ, shells, vessels and all springs in one generalised system.
+  const bool has_tets = state.num_tetrahedra() > 0;
+  std::optional<ThinSystem> thin;
+  if (!impl_->model.thin.empty()) {
+    ThinSystemOptions to = generalised_options();
+    to.elastic = elastic_options;
     thin.emplace(impl_->model.thin, scene, &state, &springs, to);
   }
+  // Degree 2 and 3: the organ's Bernstein tetrahedra (straight-sided raise of the model
+  // mesh: a scene gives no smooth surface to raise onto) in a generalised system of their own.
+  const int degree = scene.model_degree;
+  std::optional<ThinSystem> curved_system;
+  BernsteinTetTerms* curved = nullptr;
+  std::optional<mechanics::CurvedBoundary> curved_boundary;
+  SurfaceMesh curved_surface;
+  if (degree > 1) {
+    mechanics::BernsteinTetOptions bo;
+    bo.material = ToMechanicsMaterial(scene.material);
+    auto terms = std::make_unique<BernsteinTetTerms>(
+        mechanics::RaiseTetMesh(impl_->model.mesh, degree), bo, &springs);
+    curved = terms.get();
+    ThinSystemOptions to = generalised_options();
+    curved_system.emplace(std::vector<LoadedThin>(), scene, &state, &springs, to, std::move(terms));
+    curved_boundary =
+        mechanics::TessellateBoundary(curved->mesh(), curved->mesh().nodes, kCurvedSubdivisions);
+    curved_surface = curved_boundary->surface;
+  }
   std::optional<mechanics::QuasiStaticFit> output_fit;
-  if (o.mechanics.output_spring_factor > 0 && has_tets) {
+  // The output fit is a linear-tetrahedron solve: degree 2 and 3 show the stepped state.
+  if (o.mechanics.output_spring_factor > 0 && has_tets && degree == 1) {
     mechanics::QuasiStaticFitOptions fo;
     fo.spring_factor = o.mechanics.output_spring_factor;
     fo.elastic = elastic_options;
@@ -347,9 +388,15 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
         thin->lift_triangles().array() + organ_vertices;
   }
   const SurfaceMesh& lifted = thin ? lift_surface : surface;
-  for (const SurfaceMesh& m : internal)
-    internal_embedding.push_back(
-        mechanics::EmbeddedPoints::Embed(m.vertices, state.rest_positions(), state.tetrahedra()));
+  std::vector<mechanics::HighOrderEmbedding> internal_curved;  // degree 2 and 3
+  for (const SurfaceMesh& m : internal) {
+    if (curved)
+      internal_curved.push_back(
+          mechanics::HighOrderEmbedding::Embed(curved->mesh(), curved->mesh().nodes, m.vertices));
+    else
+      internal_embedding.push_back(
+          mechanics::EmbeddedPoints::Embed(m.vertices, state.rest_positions(), state.tetrahedra()));
+  }
 
   // --- Frame 0: detection inside the model's silhouette, attachment by ray casting.
   const render::RasterCamera raster = ToRasterCamera(camera);
@@ -402,6 +449,13 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   // Anchors of every feature row: embedded in the tetrahedra, or on a shell's surface.
   const auto update_anchors = [&](RowMatX3d* anchors) {
     if (has_tets) feature_embedding.Positions(state.positions(), state.tetrahedra(), anchors);
+    if (curved) {
+      curved_system->SyncSolid(&state);  // embeds springs added since the last step
+      for (size_t r = 0; r < features.size(); ++r)
+        if (features[r].spring >= 0)
+          anchors->row(r) =
+              curved->SpringAnchor(curved_system->state(), features[r].spring).transpose();
+    }
     for (size_t r = 0; r < thin_spring.size(); ++r)
       if (thin_spring[r] >= 0) anchors->row(r) = thin->FeatureAnchor(thin_spring[r]).transpose();
   };
@@ -534,6 +588,8 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       if (o.roi_dilation_px >= 0) {
         if (thin)
           frame_roi = render::RenderMask(raster, lift_vertices(), lift_surface.faces);
+        else if (curved)
+          frame_roi = render::RenderMask(raster, curved_surface.vertices, curved_surface.faces);
         else
           frame_roi = render::RenderMask(raster, state.positions(), surface.faces);
         if (o.roi_dilation_px > 0)
@@ -671,8 +727,9 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
         else
           springs.SetTarget(v.spring, targets.row(r).transpose());
       }
-      if (thin) {
-        const mechanics::GeneralisedSummary step = thin->Step(&state);
+      if (thin || curved) {
+        const mechanics::GeneralisedSummary step =
+            thin ? thin->Step(&state) : curved_system->Step(&state);
         stats.mechanics_status = mechanics::StepStatusName(step.status);
         stats.linear_iterations = step.linear_iterations;
         stats.factorizations = step.factorizations;
@@ -764,8 +821,17 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       // contour show the shells and vessels together.
       if (!has_tets) surface = MergeSurfaces(thin_surfaces);
     }
-    for (size_t k = 0; k < internal.size(); ++k)
-      internal_embedding[k].Positions(*shown, state.tetrahedra(), &internal[k].vertices);
+    if (curved) {
+      const RowMatX3d nodes = curved->NodePositions(curved_system->state());
+      curved_surface.vertices = curved_boundary->vertices.Positions(nodes);
+      for (size_t k = 0; k < internal.size(); ++k)
+        internal[k].vertices = internal_curved[k].Positions(nodes);
+    } else {
+      for (size_t k = 0; k < internal.size(); ++k)
+        internal_embedding[k].Positions(*shown, state.tetrahedra(), &internal[k].vertices);
+    }
+    // What is shown, saved and evaluated: the curved boundary's tessellation at degree 2, 3.
+    const SurfaceMesh& shown_surface = curved ? curved_surface : surface;
     double sum = 0;
     for (int r = 0; r < nf; ++r) {
       FeatureView& v = features[r];
@@ -801,7 +867,8 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       layers.anchors_mm = &anchors;
       layers.alive = &alive_rows;
       layers.frame = frame;
-      overlay.Render(surface.vertices, surface.faces, layers_internal, layers, &overlay_image);
+      overlay.Render(shown_surface.vertices, shown_surface.faces, layers_internal, layers,
+                     &overlay_image);
       ms.render = since(t0);
     } else {
       overlay_image = cv::Mat();
@@ -829,7 +896,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     fs.cut_surface = cut_surface ? &*cut_surface : nullptr;
     fs.state = &state;
     fs.positions = shown;
-    fs.surface = &surface;
+    fs.surface = &shown_surface;
     fs.internal = &internal;
     fs.internal_names = &impl_->model.internal_names;
     if (thin) {

@@ -219,6 +219,157 @@ std::vector<const mechanics::InertiaSource*> LinearTetTerms::inertia() const {
   return {elastic_.get()};
 }
 
+// --- BernsteinTetTerms ----------------------------------------------------------------------
+
+BernsteinTetTerms::BernsteinTetTerms(mechanics::HighOrderTetMesh mesh,
+                                     const mechanics::BernsteinTetOptions& options,
+                                     mechanics::SpringEnergy* springs)
+    : mesh_(std::move(mesh)), options_(options), springs_(springs) {
+  options_.Check();
+}
+
+bool BernsteinTetTerms::Sync(const mechanics::MechanicalState& body, GeneralisedState* state) {
+  bool changed = false;
+  if (!elastic_) {
+    ARREG_CHECK_INPUT(
+        body.num_vertices() == mesh_.num_vertices && body.num_tetrahedra() == mesh_.num_elements(),
+        "", "model.degree", "the raised mesh has ", mesh_.num_vertices, " vertices and ",
+        mesh_.num_elements(), " elements, the body ", body.num_vertices(), " and ",
+        body.num_tetrahedra());
+    node_ = mechanics::AddHighOrderNodes(mesh_, state);
+    vertex_node_.assign(node_.begin(), node_.begin() + mesh_.num_vertices);
+    elastic_ = std::make_unique<mechanics::BernsteinTetTerm>(&mesh_, node_, options_);
+    num_vertices_ = body.num_vertices();
+    body_topology_ = body.topology_version();
+    // A control point is fixed when every corner spanning it is (an edge between two
+    // fixed vertices stays put); the corners follow the body's flags below.
+    const std::vector<std::array<int, 4>> indices = mechanics::BernsteinIndices(mesh_.degree);
+    std::vector<char> free(mesh_.num_nodes(), 0);
+    for (int e = 0; e < mesh_.num_elements(); ++e)
+      for (size_t a = 0; a < indices.size(); ++a)
+        for (int i = 0; i < 4; ++i)
+          if (indices[a][i] > 0 && !body.is_fixed(mesh_.elements(e, i)))
+            free[mesh_.elements(e, a)] = 1;
+    for (int n = mesh_.num_vertices; n < mesh_.num_nodes(); ++n)
+      state->SetFixedTranslation(node_[n], !free[n]);
+    changed = true;
+  }
+  ARREG_CHECK_INPUT(
+      body.num_vertices() == num_vertices_ && body.topology_version() == body_topology_, "",
+      "model.degree", "the organ's topology changed, and degree 2 and 3 elements cannot be cut");
+  if (static_cast<int>(spring_nodes_.size()) < springs_->size()) {
+    EmbedNewSprings(body);
+    changed = true;
+  }
+  for (int v = 0; v < body.num_vertices(); ++v) {
+    const int n = vertex_node_[v];
+    state->mutable_positions().row(n) = body.positions().row(v);
+    state->mutable_velocities().row(n) = body.velocities().row(v);
+    if (state->fixed_translation(n) != body.is_fixed(v))
+      state->SetFixedTranslation(n, body.is_fixed(v));
+  }
+  return changed;
+}
+
+void BernsteinTetTerms::EmbedNewSprings(const mechanics::MechanicalState& body) {
+  const int first = static_cast<int>(spring_nodes_.size());
+  RowMatX3d rest(springs_->size() - first, 3);
+  for (int id = first; id < springs_->size(); ++id) {
+    const mechanics::EmbeddedPoint& a = springs_->spring(id).anchor;
+    Eigen::Vector3d p = Eigen::Vector3d::Zero();
+    for (int i = 0; i < 4; ++i)
+      p += a.barycentric[i] * body.rest_position(body.tetrahedra()(a.tet, i)).transpose();
+    rest.row(id - first) = p.transpose();
+  }
+  const mechanics::HighOrderEmbedding embedded =
+      mechanics::HighOrderEmbedding::Embed(mesh_, mesh_.nodes, rest);
+  for (int k = 0; k < embedded.size(); ++k) {
+    const Eigen::VectorXd w = mechanics::BernsteinValues(mesh_.degree, embedded.barycentric(k));
+    std::vector<int> nodes(w.size());
+    for (int a = 0; a < w.size(); ++a) nodes[a] = node_[mesh_.elements(embedded.element(k), a)];
+    spring_nodes_.push_back(std::move(nodes));
+    spring_weights_.emplace_back(w.data(), w.data() + w.size());
+  }
+}
+
+void BernsteinTetTerms::CopyBack(const GeneralisedState& state,
+                                 mechanics::MechanicalState* body) const {
+  for (int v = 0; v < body->num_vertices(); ++v) {
+    body->mutable_positions().row(v) = state.positions().row(vertex_node_[v]);
+    body->mutable_velocities().row(v) = state.velocities().row(vertex_node_[v]);
+  }
+}
+
+std::vector<mechanics::GeneralisedEnergyTerm*> BernsteinTetTerms::elastic() {
+  if (!elastic_) return {};
+  return {elastic_.get()};
+}
+std::vector<mechanics::GeneralisedEnergyTerm*> BernsteinTetTerms::others() {
+  return {&springs_term_};
+}
+std::vector<const mechanics::InertiaSource*> BernsteinTetTerms::inertia() const {
+  if (!elastic_) return {};
+  return {elastic_.get()};
+}
+
+RowMatX3d BernsteinTetTerms::NodePositions(const GeneralisedState& state) const {
+  RowMatX3d x(mesh_.num_nodes(), 3);
+  for (int n = 0; n < x.rows(); ++n) x.row(n) = state.positions().row(node_[n]);
+  return x;
+}
+
+Eigen::Vector3d BernsteinTetTerms::SpringAnchor(const GeneralisedState& state, int id) const {
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  const std::vector<int>& nodes = spring_nodes_.at(id);
+  for (size_t a = 0; a < nodes.size(); ++a)
+    p += spring_weights_[id][a] * state.positions().row(nodes[a]).transpose();
+  return p;
+}
+
+void BernsteinTetTerms::Springs::AppendStencils(std::vector<std::vector<int>>* stencils) const {
+  for (const std::vector<int>& nodes : owner_->spring_nodes_) stencils->push_back(nodes);
+}
+
+double BernsteinTetTerms::Springs::Value(const GeneralisedState& state) const {
+  double e = 0;
+  for (int id = 0; id < static_cast<int>(owner_->spring_nodes_.size()); ++id) {
+    const mechanics::SpringEnergy::Spring& s = owner_->springs_->spring(id);
+    if (!s.active) continue;
+    e += 0.5 * s.stiffness_n_per_m * (owner_->SpringAnchor(state, id) - s.target_mm).squaredNorm();
+  }
+  return e;
+}
+
+void BernsteinTetTerms::Springs::AddGradient(const GeneralisedState& state,
+                                             Eigen::VectorXd* gradient) const {
+  for (int id = 0; id < static_cast<int>(owner_->spring_nodes_.size()); ++id) {
+    const mechanics::SpringEnergy::Spring& s = owner_->springs_->spring(id);
+    if (!s.active) continue;
+    const Eigen::Vector3d f = s.stiffness_n_per_m * (owner_->SpringAnchor(state, id) - s.target_mm);
+    const std::vector<int>& nodes = owner_->spring_nodes_[id];
+    for (size_t a = 0; a < nodes.size(); ++a)
+      gradient->segment<3>(state.dof_offset(nodes[a])) += owner_->spring_weights_[id][a] * f;
+  }
+}
+
+void BernsteinTetTerms::Springs::AddHessian(const GeneralisedState& state, double scale,
+                                            mechanics::HessianSink* sink) const {
+  (void)state;
+  for (int id = 0; id < static_cast<int>(owner_->spring_nodes_.size()); ++id) {
+    const mechanics::SpringEnergy::Spring& s = owner_->springs_->spring(id);
+    if (!s.active) continue;
+    const std::vector<int>& nodes = owner_->spring_nodes_[id];
+    const std::vector<double>& w = owner_->spring_weights_[id];
+    // Each pair once: the sink adds the transposed block for a != b.
+    for (size_t a = 0; a < nodes.size(); ++a)
+      for (size_t b = a; b < nodes.size(); ++b) {
+        const double k = s.stiffness_n_per_m * w[a] * w[b];
+        if (k == 0) continue;
+        sink->AddBlock(nodes[a], nodes[b], k * Eigen::Matrix3d::Identity(), scale);
+      }
+  }
+}
+
 // --- ShellPointSpringTerm -----------------------------------------------------------------
 
 int ShellPointSpringTerm::Add(const Spring& spring) {
@@ -373,10 +524,10 @@ void ThinSystemOptions::Check() const {
 
 ThinSystem::ThinSystem(const std::vector<LoadedThin>& thin, const Scene& scene,
                        mechanics::MechanicalState* body, mechanics::SpringEnergy* springs,
-                       const ThinSystemOptions& options)
+                       const ThinSystemOptions& options, std::unique_ptr<SolidTerms> solid)
     : options_(options),
       body_(body),
-      solid_(std::make_unique<LinearTetTerms>(options.elastic, springs)),
+      solid_(solid ? std::move(solid) : std::make_unique<LinearTetTerms>(options.elastic, springs)),
       integrator_(options.integrator) {
   options.Check();
   solid_->Sync(*body, &state_);
@@ -681,6 +832,13 @@ mechanics::GeneralisedSummary ThinSystem::Step(mechanics::MechanicalState* body)
       integrator_.Step(&state_, elastic_terms_, other_terms_, inertia_);
   solid_->CopyBack(state_, body);
   return summary;
+}
+
+void ThinSystem::SyncSolid(const mechanics::MechanicalState* body) {
+  if (solid_->Sync(*body, &state_)) {
+    ties_->Reembed();
+    dirty_ = true;
+  }
 }
 
 ThinCutEvent ThinSystem::Cut(const std::vector<Eigen::Vector3d>& polyline_rest,

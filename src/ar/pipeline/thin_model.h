@@ -13,11 +13,14 @@
 
 #include "core/mesh.h"
 #include "core/scene.h"
+#include "mechanics/bernstein_tet.h"
 #include "mechanics/bezier_shell.h"
+#include "mechanics/curved_tet.h"
 #include "mechanics/elastic_energy.h"
 #include "mechanics/embedding.h"
 #include "mechanics/generalised_solver.h"
 #include "mechanics/generalised_terms.h"
+#include "mechanics/high_order_mesh.h"
 #include "mechanics/mechanical_state.h"
 #include "mechanics/shell_cutting.h"
 #include "mechanics/shell_mapping.h"
@@ -89,6 +92,69 @@ class LinearTetTerms : public SolidTerms {
   std::uint64_t body_topology_ = 0;
   std::unique_ptr<mechanics::TetElasticityTerm> elastic_;
   std::unique_ptr<mechanics::TetBodyTerm> springs_term_;
+};
+
+// Bernstein-Bezier tetrahedra of degree 2 or 3 (mechanics/bernstein_tet.h, scene key
+// model.degree) for the organ: every control point of `mesh` is a state node, the first
+// mesh.num_vertices of them the body's vertices (the body mirrors the corner positions,
+// which lie on the curved surface); the body's feature springs anchored by the curved map.
+// The body's topology must not change (quadratic cutting does not exist): Sync throws
+// arreg::Error naming "model.degree" when it did.
+class BernsteinTetTerms : public SolidTerms {
+ public:
+  // `mesh`: the body's rest mesh raised to the degree (its elements in the body's
+  // tetrahedron order, its first nodes the body's vertices). `springs` must outlive this.
+  BernsteinTetTerms(mechanics::HighOrderTetMesh mesh, const mechanics::BernsteinTetOptions& options,
+                    mechanics::SpringEnergy* springs);
+  bool Sync(const mechanics::MechanicalState& body, mechanics::GeneralisedState* state) override;
+  void CopyBack(const mechanics::GeneralisedState& state,
+                mechanics::MechanicalState* body) const override;
+  std::vector<mechanics::GeneralisedEnergyTerm*> elastic() override;
+  std::vector<mechanics::GeneralisedEnergyTerm*> others() override;
+  std::vector<const mechanics::InertiaSource*> inertia() const override;
+  const std::vector<int>& vertex_node() const override { return vertex_node_; }
+
+  const mechanics::HighOrderTetMesh& mesh() const { return mesh_; }
+  // Positions of the mesh's control points (#N x 3) in `state`.
+  RowMatX3d NodePositions(const mechanics::GeneralisedState& state) const;
+  // Current anchor of feature spring `id` (on the curved map of its element).
+  Eigen::Vector3d SpringAnchor(const mechanics::GeneralisedState& state, int id) const;
+
+ private:
+  // Zero-length springs E = sum k/2 |sum_a w_a x_a - t|^2 over the body's SpringEnergy
+  // (targets, stiffness, active flags), each anchor a fixed Bernstein-weighted sum of its
+  // element's control points. Exact Hessian (constant).
+  class Springs : public mechanics::GeneralisedEnergyTerm {
+   public:
+    explicit Springs(const BernsteinTetTerms* owner) : owner_(owner) {}
+    std::string name() const override { return "springs"; }
+    void AppendStencils(std::vector<std::vector<int>>* stencils) const override;
+    double Value(const mechanics::GeneralisedState& state) const override;
+    void AddGradient(const mechanics::GeneralisedState& state,
+                     Eigen::VectorXd* gradient) const override;
+    void AddHessian(const mechanics::GeneralisedState& state, double scale,
+                    mechanics::HessianSink* sink) const override;
+
+   private:
+    const BernsteinTetTerms* owner_;
+  };
+  // Embeds the springs added since the last call: their rest anchors (the body's rest
+  // mesh at the spring's tetrahedron and barycentric coordinates) located in the curved
+  // rest mesh by Newton (HighOrderEmbedding).
+  void EmbedNewSprings(const mechanics::MechanicalState& body);
+
+  mechanics::HighOrderTetMesh mesh_;
+  mechanics::BernsteinTetOptions options_;
+  mechanics::SpringEnergy* springs_;
+  std::vector<int> node_;         // mesh node -> state node
+  std::vector<int> vertex_node_;  // body vertex -> state node (the first mesh nodes)
+  int num_vertices_ = -1;
+  std::uint64_t body_topology_ = 0;
+  std::unique_ptr<mechanics::BernsteinTetTerm> elastic_;
+  Springs springs_term_{this};
+  // Per embedded spring: its element's state nodes and Bernstein weights.
+  std::vector<std::vector<int>> spring_nodes_;
+  std::vector<std::vector<double>> spring_weights_;
 };
 
 // Zero-length springs from points on Bezier shell surfaces (an element and barycentric
@@ -186,9 +252,10 @@ class ThinSystem {
  public:
   // `body` (the organ; may have no tetrahedra) and `springs` (its feature springs) must
   // outlive this. Throws arreg::Error for bad options or meshes the models reject.
+  // `solid`: the organ's model; null for LinearTetTerms (options.elastic, springs).
   ThinSystem(const std::vector<LoadedThin>& thin, const Scene& scene,
              mechanics::MechanicalState* body, mechanics::SpringEnergy* springs,
-             const ThinSystemOptions& options);
+             const ThinSystemOptions& options, std::unique_ptr<SolidTerms> solid = nullptr);
 
   int num_shells() const { return static_cast<int>(shells_.size()); }
   int num_vessels() const { return static_cast<int>(vessels_.size()); }
@@ -222,6 +289,9 @@ class ThinSystem {
   // One frame: the organ's nodes follow `body` (SolidTerms::Sync), one implicit Euler step of
   // the whole system, positions and velocities back into `body`.
   mechanics::GeneralisedSummary Step(mechanics::MechanicalState* body);
+  // The organ's nodes follow `body` now (SolidTerms::Sync): new feature springs are
+  // embedded before the next Step (their anchors are read between steps).
+  void SyncSolid(const mechanics::MechanicalState* body);
 
   // Cuts the shells along `polyline_rest` (rest coordinates, world mm) seen along `direction`,
   // and the vessels by the plane through `polyline_current` containing `direction` (current
