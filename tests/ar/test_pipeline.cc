@@ -8,9 +8,11 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <set>
 #include <string>
 #include <utility>
 
+#include "ar/debug/recorder.h"
 #include "ar/pipeline/overlay.h"
 #include "ar/pipeline/record_writer.h"
 #include "ar/pipeline/registration_pipeline.h"
@@ -378,10 +380,30 @@ TEST(Pipeline, MembraneOnlySceneFollowsARigidShift) {
   RegistrationPipeline pipe(scene, o);
   ThinProbe probe;
   RecordWriter records(dir + "/out", false);
+  debug::DebugRecorderOptions ro;
+  ro.run_dir = dir + "/out";
+  debug::DebugRecorder recorder(ro);
   pipe.AddObserver(&probe);
   pipe.AddObserver(&records);
+  pipe.AddObserver(&recorder);
   const RunSummary s = pipe.Run();
   EXPECT_EQ(s.frames, 16);
+  // The debug records resolve the detector's pairs to the features on the sheet (the
+  // detector's features are those attached to the organ or to a thin structure), which carry
+  // their target and model points.
+  {
+    const nlohmann::json rec = ParseJsonFile(debug::FrameRecordPath(dir + "/out", 15));
+    std::set<int> on_sheet;
+    for (const auto& f : rec["features"])
+      if (f.contains("target_mm") && f.contains("model_mm")) on_sheet.insert(f["id"].get<int>());
+    EXPECT_EQ(static_cast<int>(on_sheet.size()), probe.on_thin);
+    ASSERT_FALSE(rec["detection"].is_null());
+    ASSERT_FALSE(rec["detection"]["pairs"].empty());
+    for (const auto& p : rec["detection"]["pairs"]) {
+      EXPECT_EQ(on_sheet.count(p[0].get<int>()), 1u);
+      EXPECT_EQ(on_sheet.count(p[1].get<int>()), 1u);
+    }
+  }
   const Eigen::Vector3d moved = probe.last - probe.rest;
   EXPECT_NEAR(moved.x(), 6.0, 0.3);
   EXPECT_NEAR(moved.y(), 0.0, 0.3);

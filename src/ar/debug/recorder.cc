@@ -165,7 +165,7 @@ nlohmann::json MakeFrameRecord(const pipeline::FrameState& frame, const PinholeC
     const auto& fv = *frame.features;
     for (size_t r = 0; r < fv.size(); ++r) {
       const pipeline::FeatureView& v = fv[r];
-      if (v.spring >= 0) attached_rows.push_back(static_cast<int>(r));
+      if (v.attached) attached_rows.push_back(static_cast<int>(r));
       nlohmann::json f = {{"id", v.id},
                           {"px", {Round(v.pixel.x(), scale), Round(v.pixel.y(), scale)}},
                           {"status", TrackStatusName(v.track_status)},
@@ -173,7 +173,7 @@ nlohmann::json MakeFrameRecord(const pipeline::FrameState& frame, const PinholeC
                           {"alive", v.alive},
                           {"spring_active", v.spring_active},
                           {"spring_length_mm", Round(v.spring_length_mm, 1e4)}};
-      const bool has_target = v.spring >= 0;
+      const bool has_target = v.attached;
       if (has_target && frame.targets_mm &&
           static_cast<Eigen::Index>(r) < frame.targets_mm->rows()) {
         const Eigen::Vector3d t = frame.targets_mm->row(r).transpose();

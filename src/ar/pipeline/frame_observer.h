@@ -36,8 +36,11 @@ struct FeatureView {
   Eigen::Vector2d pixel = Eigen::Vector2d::Zero();
   TrackStatus track_status = TrackStatus::kTracked;  // this frame (final once not kTracked)
   lift::LiftStatus lift_status = lift::LiftStatus::kNotAttached;
-  bool alive = false;             // tracked and attached: its spring acts
-  int spring = -1;                // SpringEnergy id, -1 when never attached
+  bool alive = false;  // tracked and attached: its spring acts
+  int spring = -1;     // SpringEnergy id, -1 when never attached to the organ
+  // Attached to the organ (spring >= 0) or to a thin structure (a ThinSystem spring): the
+  // cut detector's features, in row order.
+  bool attached = false;
   bool spring_active = false;     // false once lost or removed near a cut
   double spring_length_mm = 0.0;  // |anchor - target| (0 for inactive springs)
 };

@@ -493,7 +493,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     } else {
       v.spring = springs.Add(feature_embedding[r], attachments[r].point_mm, stiffness.n_per_m);
     }
-    v.alive = v.spring_active = true;
+    v.alive = v.spring_active = v.attached = true;
   }
   ms.mechanics = since(t0);
 
@@ -674,12 +674,12 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
             thin_spring[r] = thin->AddFeatureSpring(more[k].face - organ_faces0, more[k].point_mm,
                                                     more[k].point_mm, stiffness.n_per_m);
             attach_points.row(r) = thin->FeatureRestAnchor(thin_spring[r]).transpose();
-            v.alive = v.spring_active = true;
+            v.alive = v.spring_active = v.attached = true;
             joining.push_back(r);
             ++stats.added;
           } else if (more[k].attached && trusted[k] && has_tets) {
             v.spring = springs.Add(current[k], more[k].point_mm, stiffness.n_per_m);
-            v.alive = v.spring_active = true;
+            v.alive = v.spring_active = v.attached = true;
             joining.push_back(r);
             ++stats.added;
           }
@@ -724,8 +724,12 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
         }
         if (thin_spring[r] >= 0)
           thin->SetFeatureTarget(thin_spring[r], targets.row(r).transpose());
-        else
+        else {
           springs.SetTarget(v.spring, targets.row(r).transpose());
+          if (o.mechanics.spring_along_ray_fraction < 1.0)
+            springs.SetAxis(v.spring, targets.row(r).transpose() - camera.CenterInWorld(),
+                            o.mechanics.spring_along_ray_fraction);
+        }
       }
       if (thin || curved) {
         const mechanics::GeneralisedSummary step =
