@@ -41,6 +41,8 @@ int RunSynth(int argc, char** argv) {
   parser.AddDouble("cell", &o.fine_cell_mm, "MM",
                    "band truth mesh spacing in mm (membranes: half of it in-plane)");
   parser.AddDouble("kidney-cell", &o.kidney_cell_mm, "MM", "kidney truth mesh size in mm");
+  parser.AddDouble("membrane-cell", &o.membrane_cell_mm, "MM",
+                   "membranes' model shell grid spacing in mm, in [2, 10] (default 5)");
   parser.AddDouble("noise", &o.noise_sigma, "SIGMA", "sensor noise, 8-bit grey levels");
   parser.AddDouble("blur", &o.blur_sigma_px, "PX", "Gaussian blur of the video in px (0: off)");
   parser.AddFlag("occluder", &o.occluder, "draw an instrument-like occluder over the video");

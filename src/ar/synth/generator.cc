@@ -455,6 +455,7 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
   scenario_options.zoom = options.zoom;
   scenario_options.fine_cell_mm = options.fine_cell_mm;
   scenario_options.kidney_cell_mm = options.kidney_cell_mm;
+  scenario_options.membrane_cell_mm = options.membrane_cell_mm;
   scenario_options.seed = options.seed;
   Scenario s = BuildScenario(options.scenario, scenario_options);
   ARREG_CHECK_INPUT(

@@ -21,14 +21,15 @@ struct SynthOptions {
   double amplitude =
       1.0;            // scales the grip motions (manipulation speed at fixed frames), default 1
   double zoom = 1.0;  // focal length relative to the scenario's 60-degree view, default 1
-  double fine_cell_mm = 5.0;    // band truth mesh spacing (mm), default 5
-  double kidney_cell_mm = 2.6;  // kidney truth mesh size (mm), default 2.6
-  double noise_sigma = 2.0;     // Gaussian sensor noise (8-bit grey levels), default 2
-  double blur_sigma_px = 0.0;   // optional Gaussian blur of the video (px), default 0 (off)
-  bool occluder = false;        // draw an instrument-like occluder over the video, default off
-  int supersampling = 2;        // anti-aliasing samples per pixel and axis for the video, default 2
-  int crf = 14;                 // x264 quality (lower is better), default 14
-  bool write_video = true;      // false skips rendering and encoding (ground-truth-only runs)
+  double fine_cell_mm = 5.0;      // band truth mesh spacing (mm), default 5
+  double kidney_cell_mm = 2.6;    // kidney truth mesh size (mm), default 2.6
+  double membrane_cell_mm = 5.0;  // membranes' model shell grid spacing (mm), default 5
+  double noise_sigma = 2.0;       // Gaussian sensor noise (8-bit grey levels), default 2
+  double blur_sigma_px = 0.0;     // optional Gaussian blur of the video (px), default 0 (off)
+  bool occluder = false;          // draw an instrument-like occluder over the video, default off
+  int supersampling = 2;    // anti-aliasing samples per pixel and axis for the video, default 2
+  int crf = 14;             // x264 quality (lower is better), default 14
+  bool write_video = true;  // false skips rendering and encoding (ground-truth-only runs)
   // Called after each frame with (frames done, total).
   std::function<void(int, int)> progress;
   void Check() const;

@@ -26,6 +26,8 @@ void ScenarioOptions::Check() const {
                     "must be in [1, 10] mm, got ", fine_cell_mm);
   ARREG_CHECK_INPUT(kidney_cell_mm >= 1 && kidney_cell_mm <= 6, "", "kidney_cell_mm",
                     "must be in [1, 6] mm, got ", kidney_cell_mm);
+  ARREG_CHECK_INPUT(membrane_cell_mm >= 2 && membrane_cell_mm <= 10, "", "membrane_cell_mm",
+                    "must be in [2, 10] mm, got ", membrane_cell_mm);
   ARREG_CHECK_INPUT(amplitude > 0 && amplitude <= 1.5, "", "amplitude", "must be in (0, 1.5], got ",
                     amplitude);
   ARREG_CHECK_INPUT(zoom >= 0.5 && zoom <= 4, "", "zoom", "must be in [0.5, 4], got ", zoom);
@@ -274,7 +276,8 @@ Scenario KidneyCut(const ScenarioOptions& o) {
 // left and right edges; the right support pulls along x and twists about the sheet's x axis
 // (so the free edges y = 0 and y = W leave the plane). Sizes, thickness, pull and twist come
 // from the seed. Truth: 2 tetrahedron layers through the thickness (the vertex layer between
-// them is the mid-surface), in-plane cells of about half --cell; model: a 5 mm shell mesh.
+// them is the mid-surface), in-plane cells of about half --cell; model: a shell mesh of
+// --membrane-cell (5 mm).
 struct MembraneDraw {
   double length = 90, width = 60, thickness = 1.5, pull = 12, twist_rad = 0.3;
 };
@@ -309,14 +312,16 @@ Scenario MakeMembrane(const std::string& name, const MembraneDraw& m, const Scen
   MembraneSpec spec;
   spec.thickness_mm = m.thickness;
   spec.mid_z_mm = m.thickness / 2;
-  const int nx = static_cast<int>(std::round(m.length / 5)),
-            ny = static_cast<int>(std::round(m.width / 5));
+  const int nx = std::max(1, static_cast<int>(std::round(m.length / o.membrane_cell_mm))),
+            ny = std::max(1, static_cast<int>(std::round(m.width / o.membrane_cell_mm)));
   SurfaceMesh& mid = spec.model_mid_surface;
   mid.vertices.resize((nx + 1) * (ny + 1), 3);
   for (int j = 0; j <= ny; ++j)
     for (int i = 0; i <= nx; ++i) {
       mid.vertices.row(j * (nx + 1) + i) << m.length * i / nx, m.width * j / ny, spec.mid_z_mm;
-      if (i == 0 || i == nx) spec.model_fixed_vertices.push_back(j * (nx + 1) + i);
+      // The model holds the static support only: the pulled one moves by an amount the
+      // registration is not told (a grasper), so it is free and follows its features.
+      if (i == 0) spec.model_fixed_vertices.push_back(j * (nx + 1) + i);
     }
   mid.faces.resize(2 * nx * ny, 3);
   for (int j = 0, f = 0; j < ny; ++j)

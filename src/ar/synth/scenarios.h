@@ -83,6 +83,9 @@ struct ScenarioOptions {
   double fine_cell_mm = 5.0;    // grid spacing of the band truth meshes in-plane (mm), default 5
                                 // (membranes: half of it)
   double kidney_cell_mm = 2.6;  // circumradius bound of the kidney truth mesh (mm), default 2.6
+  // Grid spacing of the membranes' model shell (the registration's mid-surface, mm), in [2, 10];
+  // default 5.
+  double membrane_cell_mm = 5.0;
   double amplitude = 1.0;  // scales every grip motion (1 = the scenario's nominal speed/stretch)
   int width = 640, height = 512;  // image size (px)
   // Focal length relative to the scenarios' 60-degree horizontal field of view, from the same
