@@ -171,6 +171,31 @@ std::vector<LoadedThin> LoadThinStructures(const Scene& scene) {
 
 // --- LinearTetTerms -----------------------------------------------------------------------
 
+namespace {
+
+// The body's vertex positions, velocities and fixed flags into their state nodes.
+void CopyBodyToNodes(const mechanics::MechanicalState& body, const std::vector<int>& vertex_node,
+                     GeneralisedState* state) {
+  for (int v = 0; v < body.num_vertices(); ++v) {
+    const int n = vertex_node[v];
+    state->mutable_positions().row(n) = body.positions().row(v);
+    state->mutable_velocities().row(n) = body.velocities().row(v);
+    if (state->fixed_translation(n) != body.is_fixed(v))
+      state->SetFixedTranslation(n, body.is_fixed(v));
+  }
+}
+
+// The vertex nodes' positions and velocities back into the body.
+void CopyNodesToBody(const GeneralisedState& state, const std::vector<int>& vertex_node,
+                     mechanics::MechanicalState* body) {
+  for (int v = 0; v < body->num_vertices(); ++v) {
+    body->mutable_positions().row(v) = state.positions().row(vertex_node[v]);
+    body->mutable_velocities().row(v) = state.velocities().row(vertex_node[v]);
+  }
+}
+
+}  // namespace
+
 LinearTetTerms::LinearTetTerms(const mechanics::CorotationalOptions& options,
                                mechanics::SpringEnergy* springs)
     : options_(options), springs_(springs) {}
@@ -188,22 +213,13 @@ bool LinearTetTerms::Sync(const mechanics::MechanicalState& body, GeneralisedSta
     body_topology_ = body.topology_version();
     changed = true;
   }
-  for (int v = 0; v < body.num_vertices(); ++v) {
-    const int n = vertex_node_[v];
-    state->mutable_positions().row(n) = body.positions().row(v);
-    state->mutable_velocities().row(n) = body.velocities().row(v);
-    if (state->fixed_translation(n) != body.is_fixed(v))
-      state->SetFixedTranslation(n, body.is_fixed(v));
-  }
+  CopyBodyToNodes(body, vertex_node_, state);
   return changed;
 }
 
 void LinearTetTerms::CopyBack(const GeneralisedState& state,
                               mechanics::MechanicalState* body) const {
-  for (int v = 0; v < body->num_vertices(); ++v) {
-    body->mutable_positions().row(v) = state.positions().row(vertex_node_[v]);
-    body->mutable_velocities().row(v) = state.velocities().row(vertex_node_[v]);
-  }
+  CopyNodesToBody(state, vertex_node_, body);
 }
 
 std::vector<mechanics::GeneralisedEnergyTerm*> LinearTetTerms::elastic() {
@@ -261,13 +277,7 @@ bool BernsteinTetTerms::Sync(const mechanics::MechanicalState& body, Generalised
     EmbedNewSprings(body);
     changed = true;
   }
-  for (int v = 0; v < body.num_vertices(); ++v) {
-    const int n = vertex_node_[v];
-    state->mutable_positions().row(n) = body.positions().row(v);
-    state->mutable_velocities().row(n) = body.velocities().row(v);
-    if (state->fixed_translation(n) != body.is_fixed(v))
-      state->SetFixedTranslation(n, body.is_fixed(v));
-  }
+  CopyBodyToNodes(body, vertex_node_, state);
   return changed;
 }
 
@@ -294,10 +304,7 @@ void BernsteinTetTerms::EmbedNewSprings(const mechanics::MechanicalState& body) 
 
 void BernsteinTetTerms::CopyBack(const GeneralisedState& state,
                                  mechanics::MechanicalState* body) const {
-  for (int v = 0; v < body->num_vertices(); ++v) {
-    body->mutable_positions().row(v) = state.positions().row(vertex_node_[v]);
-    body->mutable_velocities().row(v) = state.velocities().row(vertex_node_[v]);
-  }
+  CopyNodesToBody(state, vertex_node_, body);
 }
 
 std::vector<mechanics::GeneralisedEnergyTerm*> BernsteinTetTerms::elastic() {
@@ -419,14 +426,36 @@ double ShellPointSpringTerm::Value(const GeneralisedState& state) const {
   return e;
 }
 
+void ShellPointSpringTerm::Update(const GeneralisedState&) {
+  cached_state_ = mechanics::StateSnapshot();
+}
+
+void ShellPointSpringTerm::CachePoints(const GeneralisedState& state) const {
+  bool same = cached_point_.size() == springs_.size() && cached_state_.Matches(state);
+  for (size_t i = 0; same && i < springs_.size(); ++i)
+    same = !springs_[i].active || (springs_[i].point.element == cached_at_[i].element &&
+                                   springs_[i].point.xi1 == cached_at_[i].xi1 &&
+                                   springs_[i].point.xi2 == cached_at_[i].xi2);
+  if (same) return;
+  cached_point_.resize(springs_.size());
+  cached_jacobian_.resize(springs_.size());
+  cached_at_.resize(springs_.size());
+  for (size_t i = 0; i < springs_.size(); ++i) {
+    if (!springs_[i].active) continue;
+    PointAndJacobian(state, springs_[i], &cached_point_[i], &cached_jacobian_[i]);
+    cached_at_[i] = springs_[i].point;
+  }
+  cached_state_.Take(state);
+}
+
 void ShellPointSpringTerm::AddGradient(const GeneralisedState& state,
                                        Eigen::VectorXd* gradient) const {
-  for (const Spring& s : springs_) {
+  CachePoints(state);
+  for (size_t i = 0; i < springs_.size(); ++i) {
+    const Spring& s = springs_[i];
     if (!s.active) continue;
-    Eigen::Vector3d p;
-    Eigen::Matrix<double, 3, 18> j;
-    PointAndJacobian(state, s, &p, &j);
-    const Eigen::Matrix<double, 18, 1> g = s.stiffness_n_per_m * j.transpose() * (p - s.target);
+    const Eigen::Matrix<double, 18, 1> g =
+        s.stiffness_n_per_m * cached_jacobian_[i].transpose() * (cached_point_[i] - s.target);
     const Eigen::Vector3i& t = s.shell->triangle(s.point.element);
     for (int a = 0; a < 3; ++a) gradient->segment<6>(state.dof_offset(t[a])) += g.segment<6>(6 * a);
   }
@@ -434,11 +463,11 @@ void ShellPointSpringTerm::AddGradient(const GeneralisedState& state,
 
 void ShellPointSpringTerm::AddHessian(const GeneralisedState& state, double scale,
                                       mechanics::HessianSink* sink) const {
-  for (const Spring& s : springs_) {
+  CachePoints(state);
+  for (size_t i = 0; i < springs_.size(); ++i) {
+    const Spring& s = springs_[i];
     if (!s.active) continue;
-    Eigen::Vector3d p;
-    Eigen::Matrix<double, 3, 18> j;
-    PointAndJacobian(state, s, &p, &j);
+    const Eigen::Matrix<double, 3, 18>& j = cached_jacobian_[i];
     const Eigen::Matrix<double, 18, 18> h = s.stiffness_n_per_m * j.transpose() * j;
     const Eigen::Vector3i& t = s.shell->triangle(s.point.element);
     for (int a = 0; a < 3; ++a)
@@ -809,8 +838,9 @@ void ThinSystem::SetFeatureTarget(int id, const Eigen::Vector3d& target_mm) {
   features_.spring(id).target = target_mm;
 }
 void ThinSystem::RemoveFeatureSpring(int id) {
+  // An inactive spring adds nothing; the system keeps its pattern (a superset of what the
+  // remaining stencils need), so the solver keeps its symbolic factorisation and its factor.
   features_.spring(id).active = false;
-  dirty_ = true;
 }
 Eigen::Vector3d ThinSystem::FeatureAnchor(int id) const { return features_.Anchor(state_, id); }
 Eigen::Vector3d ThinSystem::FeatureRestAnchor(int id) const {
@@ -830,6 +860,10 @@ mechanics::GeneralisedSummary ThinSystem::Step(mechanics::MechanicalState* body)
   if (dirty_) CollectTerms();
   const mechanics::GeneralisedSummary summary =
       integrator_.Step(&state_, elastic_terms_, other_terms_, inertia_);
+  if (getenv("SHELLCOST_DEBUG"))
+    fprintf(stderr, "DBG asm %.3f solve %.3f total %.3f newton %d fact %d cuts %d rebuilt %d\n",
+            summary.assembly_ms, summary.solve_ms, summary.total_ms, summary.newton_iterations,
+            summary.factorizations, summary.line_search_cuts, int(summary.pattern_rebuilt));
   solid_->CopyBack(state_, body);
   return summary;
 }
