@@ -724,12 +724,8 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
         }
         if (thin_spring[r] >= 0)
           thin->SetFeatureTarget(thin_spring[r], targets.row(r).transpose());
-        else {
+        else
           springs.SetTarget(v.spring, targets.row(r).transpose());
-          if (o.mechanics.spring_along_ray_fraction < 1.0)
-            springs.SetAxis(v.spring, targets.row(r).transpose() - camera.CenterInWorld(),
-                            o.mechanics.spring_along_ray_fraction);
-        }
       }
       if (thin || curved) {
         const mechanics::GeneralisedSummary step =
