@@ -426,14 +426,36 @@ double ShellPointSpringTerm::Value(const GeneralisedState& state) const {
   return e;
 }
 
+void ShellPointSpringTerm::Update(const GeneralisedState&) {
+  cached_state_ = mechanics::StateSnapshot();
+}
+
+void ShellPointSpringTerm::CachePoints(const GeneralisedState& state) const {
+  bool same = cached_point_.size() == springs_.size() && cached_state_.Matches(state);
+  for (size_t i = 0; same && i < springs_.size(); ++i)
+    same = !springs_[i].active || (springs_[i].point.element == cached_at_[i].element &&
+                                   springs_[i].point.xi1 == cached_at_[i].xi1 &&
+                                   springs_[i].point.xi2 == cached_at_[i].xi2);
+  if (same) return;
+  cached_point_.resize(springs_.size());
+  cached_jacobian_.resize(springs_.size());
+  cached_at_.resize(springs_.size());
+  for (size_t i = 0; i < springs_.size(); ++i) {
+    if (!springs_[i].active) continue;
+    PointAndJacobian(state, springs_[i], &cached_point_[i], &cached_jacobian_[i]);
+    cached_at_[i] = springs_[i].point;
+  }
+  cached_state_.Take(state);
+}
+
 void ShellPointSpringTerm::AddGradient(const GeneralisedState& state,
                                        Eigen::VectorXd* gradient) const {
-  for (const Spring& s : springs_) {
+  CachePoints(state);
+  for (size_t i = 0; i < springs_.size(); ++i) {
+    const Spring& s = springs_[i];
     if (!s.active) continue;
-    Eigen::Vector3d p;
-    Eigen::Matrix<double, 3, 18> j;
-    PointAndJacobian(state, s, &p, &j);
-    const Eigen::Matrix<double, 18, 1> g = s.stiffness_n_per_m * j.transpose() * (p - s.target);
+    const Eigen::Matrix<double, 18, 1> g =
+        s.stiffness_n_per_m * cached_jacobian_[i].transpose() * (cached_point_[i] - s.target);
     const Eigen::Vector3i& t = s.shell->triangle(s.point.element);
     for (int a = 0; a < 3; ++a) gradient->segment<6>(state.dof_offset(t[a])) += g.segment<6>(6 * a);
   }
@@ -441,11 +463,11 @@ void ShellPointSpringTerm::AddGradient(const GeneralisedState& state,
 
 void ShellPointSpringTerm::AddHessian(const GeneralisedState& state, double scale,
                                       mechanics::HessianSink* sink) const {
-  for (const Spring& s : springs_) {
+  CachePoints(state);
+  for (size_t i = 0; i < springs_.size(); ++i) {
+    const Spring& s = springs_[i];
     if (!s.active) continue;
-    Eigen::Vector3d p;
-    Eigen::Matrix<double, 3, 18> j;
-    PointAndJacobian(state, s, &p, &j);
+    const Eigen::Matrix<double, 3, 18>& j = cached_jacobian_[i];
     const Eigen::Matrix<double, 18, 18> h = s.stiffness_n_per_m * j.transpose() * j;
     const Eigen::Vector3i& t = s.shell->triangle(s.point.element);
     for (int a = 0; a < 3; ++a)
@@ -816,8 +838,9 @@ void ThinSystem::SetFeatureTarget(int id, const Eigen::Vector3d& target_mm) {
   features_.spring(id).target = target_mm;
 }
 void ThinSystem::RemoveFeatureSpring(int id) {
+  // An inactive spring adds nothing; the system keeps its pattern (a superset of what the
+  // remaining stencils need), so the solver keeps its symbolic factorisation and its factor.
   features_.spring(id).active = false;
-  dirty_ = true;
 }
 Eigen::Vector3d ThinSystem::FeatureAnchor(int id) const { return features_.Anchor(state_, id); }
 Eigen::Vector3d ThinSystem::FeatureRestAnchor(int id) const {

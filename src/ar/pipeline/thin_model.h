@@ -185,12 +185,22 @@ class ShellPointSpringTerm : public mechanics::GeneralisedEnergyTerm {
                    Eigen::VectorXd* gradient) const override;
   void AddHessian(const mechanics::GeneralisedState& state, double scale,
                   mechanics::HessianSink* sink) const override;
+  // Drops the points and Jacobians cached for AddGradient and AddHessian.
+  void Update(const mechanics::GeneralisedState& state) override;
 
  private:
   // Position and its Jacobian (3 x 18, the element's 3 corner nodes) of a spring's point.
   void PointAndJacobian(const mechanics::GeneralisedState& state, const Spring& s,
                         Eigen::Vector3d* p, Eigen::Matrix<double, 3, 18>* jacobian) const;
+  // Fills the caches below for `state` unless they hold it already: AddGradient and
+  // AddHessian at one state need the same points and Jacobians (each a control net and its
+  // 30 x 18 derivative).
+  void CachePoints(const mechanics::GeneralisedState& state) const;
   std::vector<Spring> springs_;
+  mutable std::vector<Eigen::Vector3d> cached_point_;
+  mutable std::vector<Eigen::Matrix<double, 3, 18>> cached_jacobian_;
+  mutable std::vector<mechanics::ShellSurfacePoint> cached_at_;  // the points they are for
+  mutable mechanics::StateSnapshot cached_state_;
 };
 
 // Zero-length springs tying a node (a shell node, a vessel frame) to the material point of
