@@ -76,6 +76,16 @@ int TriangleAt(const ThinSystem& thin, const Eigen::Vector3d& p) {
   return 0;
 }
 
+// Feature springs (5 mN/mm) at 12 points spread over the 40 mm sheet, at their own positions.
+std::vector<int> TwelveFeatures(ThinSystem* thin, std::vector<Eigen::Vector3d>* points) {
+  for (double x : {-15.0, -5.0, 5.0, 15.0})
+    for (double y : {-12.0, 3.0, 14.0}) points->emplace_back(x + 0.3, y + 0.2, 0.0);
+  std::vector<int> ids;
+  for (const Eigen::Vector3d& p : *points)
+    ids.push_back(thin->AddFeatureSpring(TriangleAt(*thin, p), p, p, 5.0));
+  return ids;
+}
+
 // Connected components of a triangle list by shared vertices.
 int Components(const SurfaceMesh& m) {
   std::vector<int> parent(m.num_vertices());
@@ -160,11 +170,7 @@ TEST(ThinModel, SheetFollowsFeatureTargets) {
   ThinSystem thin({ShellOf(sheet)}, Scene(), &body, &springs, StepOptions());
   EXPECT_EQ(thin.num_shell_elements(), 128);
   std::vector<Eigen::Vector3d> points;
-  for (double x : {-15.0, -5.0, 5.0, 15.0})
-    for (double y : {-12.0, 3.0, 14.0}) points.emplace_back(x + 0.3, y + 0.2, 0.0);
-  std::vector<int> ids;
-  for (const Eigen::Vector3d& p : points)
-    ids.push_back(thin.AddFeatureSpring(TriangleAt(thin, p), p, p, 5.0));
+  const std::vector<int> ids = TwelveFeatures(&thin, &points);
   for (size_t i = 0; i < ids.size(); ++i)
     EXPECT_LT((thin.FeatureAnchor(ids[i]) - points[i]).norm(), 1e-9);
   const Eigen::Matrix3d turn = Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitZ()).toRotationMatrix();
@@ -212,11 +218,7 @@ double LostFeaturesDifference(mechanics::LinearSolverType solver) {
     o.integrator.linear_solver.type = solver;
     ThinSystem thin({ShellOf(Sheet(40, 8))}, Scene(), &body, &springs, o);
     std::vector<Eigen::Vector3d> points;
-    for (double x : {-15.0, -5.0, 5.0, 15.0})
-      for (double y : {-12.0, 3.0, 14.0}) points.emplace_back(x + 0.3, y + 0.2, 0.0);
-    std::vector<int> ids;
-    for (const Eigen::Vector3d& p : points)
-      ids.push_back(thin.AddFeatureSpring(TriangleAt(thin, p), p, p, 5.0));
+    const std::vector<int> ids = TwelveFeatures(&thin, &points);
     for (int frame = 1; frame <= 30; ++frame) {
       const double s = std::min(1.0, frame / 20.0);
       if (frame == 10) {
