@@ -318,6 +318,50 @@ TEST(FeatureLifter, FeaturesAttachedLaterHitTheCurrentSurface) {
   EXPECT_EQ(lifter.status()[4], LiftStatus::kNotAttached);
 }
 
+// A flat slab, front face at z = 100, back at 108, seen from the origin: a body that thins about
+// its mid-plane (front 101, back 107) recedes by 1 mm in front. Eq. 7.1 alone keeps the targets
+// at the plane's depth; with follow_model_thinning they move along their rays by the change of
+// the half-thickness along each ray, which puts them on the new front face exactly (the slab's
+// faces are parallel), and a second frame with the same state moves them no further.
+TEST(FeatureLifter, FollowModelThinningPutsTargetsOnTheRecedingFrontFace) {
+  const PinholeCamera camera = FrontCamera();
+  const SurfaceMesh front = MakeBumpyPatch(-40, 40, -40, 40, 100, 0, 8);
+  const SurfaceMesh back = MakeBumpyPatch(-40, 40, -40, 40, 108, 0, 8);
+  SurfaceMesh slab;
+  const int nv = static_cast<int>(front.vertices.rows());
+  slab.vertices.resize(2 * nv, 3);
+  slab.vertices << front.vertices, back.vertices;
+  slab.faces.resize(2 * front.faces.rows(), 3);
+  slab.faces << front.faces, back.faces.array() + nv;
+  RowMatX2d pixels(3, 2);
+  pixels << 320, 240, 500, 100, 150, 400;  // on the axis and up to 26 degrees off it
+  RowMatX3d thinned = slab.vertices;
+  thinned.topRows(nv).col(2).array() += 1.0;
+  thinned.bottomRows(nv).col(2).array() -= 1.0;
+  for (const bool follow : {false, true}) {
+    FeatureLifterOptions o;
+    o.follow_model_thinning = follow;
+    FeatureLifter lifter(o);
+    const std::vector<FeatureAttachment> att = lifter.Attach(camera, pixels, &slab, std::nullopt);
+    for (const FeatureAttachment& a : att) ASSERT_TRUE(a.attached);
+    for (int frame = 0; frame < 2; ++frame) {
+      lifter.Update(camera, pixels, {}, &thinned);
+      for (int r = 0; r < 3; ++r) {
+        EXPECT_NEAR(lifter.targets_mm()(r, 2), follow ? 101.0 : 100.0, 1e-9) << r;
+        const Eigen::Vector2d px = camera.Project(lifter.targets_mm().row(r).transpose());
+        EXPECT_NEAR((px - pixels.row(r).transpose()).norm(), 0.0, 1e-6);
+        EXPECT_EQ(lifter.status()[r], LiftStatus::kIntercept);
+      }
+    }
+  }
+  // Without the surface it cannot measure the thickness.
+  FeatureLifterOptions o;
+  o.follow_model_thinning = true;
+  FeatureLifter lifter(o);
+  lifter.Attach(camera, pixels, &slab, std::nullopt);
+  EXPECT_THROW(lifter.Update(camera, pixels, {}, nullptr), Error);
+}
+
 TEST(FeatureLifterOptions, CheckNamesTheField) {
   FeatureLifterOptions o;
   o.max_depth_jump_mm = -1;
@@ -326,6 +370,18 @@ TEST(FeatureLifterOptions, CheckNamesTheField) {
     FAIL();
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("max_depth_jump_mm"), std::string::npos);
+  }
+}
+
+TEST(FeatureLifterOptions, FollowModelThinningNeedsTheInterceptUpdate) {
+  FeatureLifterOptions o;
+  o.follow_model_thinning = true;
+  o.surface_update = SurfaceUpdate::kRayCastWithFallback;
+  try {
+    o.Check();
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("follow_model_thinning"), std::string::npos);
   }
 }
 

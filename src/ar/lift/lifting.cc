@@ -242,6 +242,8 @@ void FeatureLifterOptions::Check() const {
                     "lift.max_depth_jump_mm", "must be > 0, got ", max_depth_jump_mm);
   ARREG_CHECK_INPUT(std::isfinite(min_ray_distance_mm) && min_ray_distance_mm >= 0.0, "",
                     "lift.min_ray_distance_mm", "must be >= 0, got ", min_ray_distance_mm);
+  ARREG_CHECK_INPUT(!follow_model_thinning || surface_update == SurfaceUpdate::kInterceptTheorem,
+                    "", "lift.follow_model_thinning", "needs the intercept-theorem update");
   bvh.Check();
 }
 
@@ -259,10 +261,30 @@ std::vector<Ray> RaysThroughPixels(const PinholeCamera& camera, const RowMatX2d&
   return rays;
 }
 
+Eigen::Vector3d TriangleBvh::FaceNormal(int face) const {
+  const Eigen::Vector3d a = vertices_.row(faces_(face, 0)).transpose();
+  const Eigen::Vector3d n = (vertices_.row(faces_(face, 1)).transpose() - a)
+                                .cross(vertices_.row(faces_(face, 2)).transpose() - a);
+  const double length = n.norm();
+  return length > 0 ? Eigen::Vector3d(n / length) : Eigen::Vector3d::Zero();
+}
+
+std::optional<double> FeatureLifter::HalfThickness(const Ray& ray) const {
+  RayHit front, back;
+  if (!bvh_.Intersect(ray, &front, options_.min_ray_distance_mm)) return std::nullopt;
+  // Past the front triangle's plane by a hair, so an edge shared with the front triangle is not
+  // counted again.
+  if (!bvh_.Intersect(ray, &back, front.t + 1e-6 * (1.0 + front.t))) return std::nullopt;
+  if (std::abs(bvh_.FaceNormal(front.face).dot(bvh_.FaceNormal(back.face))) < std::cos(M_PI / 6))
+    return std::nullopt;
+  return 0.5 * (back.t - front.t);
+}
+
 FeatureAttachment FeatureLifter::AttachAt(int row, const Eigen::Vector3d& point_mm,
                                           double ray_distance_mm, LiftStatus how) {
   attached_[row] = 1;
   targets_.row(row) = point_mm.transpose();
+  intercept_targets_.row(row) = point_mm.transpose();
   status_[row] = how;
   FeatureAttachment a;
   a.attached = true;
@@ -292,6 +314,8 @@ std::vector<FeatureAttachment> FeatureLifter::Attach(const std::vector<Ray>& ray
   std::vector<FeatureAttachment> out(n);
   targets_.setZero(n, 3);
   plane_targets_.setZero(n, 3);
+  intercept_targets_.setZero(n, 3);
+  half_thickness_.assign(n, std::numeric_limits<double>::quiet_NaN());
   plane_valid_.assign(n, 0);
   attached_.assign(n, 0);
   status_.assign(n, LiftStatus::kNotAttached);
@@ -300,6 +324,8 @@ std::vector<FeatureAttachment> FeatureLifter::Attach(const std::vector<Ray>& ray
       RayHit hit;
       if (!bvh_.Intersect(rays[i], &hit, options_.min_ray_distance_mm)) continue;
       out[i] = AttachAt(i, hit.point_mm, hit.t, LiftStatus::kSurfaceHit);
+      if (options_.follow_model_thinning)
+        half_thickness_[i] = HalfThickness(rays[i]).value_or(half_thickness_[i]);
       out[i].face = hit.face;
       out[i].barycentric = hit.barycentric;
     }
@@ -342,8 +368,11 @@ std::vector<FeatureAttachment> FeatureLifter::AttachMore(const std::vector<Ray>&
   if (on_surface) bvh_.Refit(*surface_vertices_mm);
   targets_.conservativeResize(old_n + added, 3);
   plane_targets_.conservativeResize(old_n + added, 3);
+  intercept_targets_.conservativeResize(old_n + added, 3);
   targets_.bottomRows(added).setZero();
   plane_targets_.bottomRows(added).setZero();
+  intercept_targets_.bottomRows(added).setZero();
+  half_thickness_.resize(old_n + added, std::numeric_limits<double>::quiet_NaN());
   plane_valid_.resize(old_n + added, 0);
   attached_.resize(old_n + added, 0);
   status_.resize(old_n + added, LiftStatus::kNotAttached);
@@ -360,6 +389,8 @@ std::vector<FeatureAttachment> FeatureLifter::AttachMore(const std::vector<Ray>&
       RayHit hit;
       if (!bvh_.Intersect(rays[k], &hit, options_.min_ray_distance_mm)) continue;
       out[k] = AttachAt(i, hit.point_mm, hit.t, LiftStatus::kSurfaceHit);
+      if (options_.follow_model_thinning)
+        half_thickness_[i] = HalfThickness(rays[k]).value_or(half_thickness_[i]);
       out[k].face = hit.face;
       out[k].barycentric = hit.barycentric;
     } else if (t_plane) {
@@ -385,7 +416,8 @@ LiftSummary FeatureLifter::Update(const std::vector<Ray>& rays, const std::vecto
                     " features");
   const bool on_surface = options_.target == LiftTarget::kSurface;
   const bool cast = on_surface && options_.surface_update == SurfaceUpdate::kRayCastWithFallback;
-  if (cast) {
+  const bool thinning = on_surface && options_.follow_model_thinning;
+  if (cast || thinning) {
     ARREG_CHECK_INPUT(surface_vertices_mm != nullptr && have_surface_, "", "FeatureLifter::Update",
                       "ray casting needs the current surface vertices");
     bvh_.Refit(*surface_vertices_mm);
@@ -402,7 +434,8 @@ LiftSummary FeatureLifter::Update(const std::vector<Ray>& rays, const std::vecto
     const Eigen::Vector3d v = ray.origin_in_world;
     const std::optional<double> t_plane =
         IntersectRayPlane(ray, plane_, options_.min_ray_distance_mm);
-    const Eigen::Vector3d previous = targets_.row(i).transpose();
+    const Eigen::Vector3d previous =
+        thinning ? intercept_targets_.row(i).transpose() : targets_.row(i).transpose();
     if (!on_surface) {
       if (t_plane) {
         targets_.row(i) = ray.PointAt(*t_plane).transpose();
@@ -435,6 +468,13 @@ LiftSummary FeatureLifter::Update(const std::vector<Ray>& rays, const std::vecto
           predicted = hit.point_mm;
           how = LiftStatus::kSurfaceHit;
         }
+      }
+      intercept_targets_.row(i) = predicted.transpose();
+      if (thinning && std::isfinite(half_thickness_[i])) {
+        const std::optional<double> half = HalfThickness(ray);
+        // A change beyond max_depth_jump_mm is a ray that left the body's edge, not thinning.
+        if (half && std::abs(half_thickness_[i] - *half) <= options_.max_depth_jump_mm)
+          predicted += (half_thickness_[i] - *half) * ray.direction_in_world;
       }
       targets_.row(i) = predicted.transpose();
       status_[i] = how;

@@ -48,6 +48,8 @@ class TriangleBvh {
   bool IntersectBruteForce(const Ray& ray, RayHit* hit, double t_min = 0.0,
                            double t_max = std::numeric_limits<double>::infinity()) const;
 
+  // Unit normal of triangle `face` as the vertices stand (zero for a degenerate triangle).
+  Eigen::Vector3d FaceNormal(int face) const;
   int num_faces() const { return static_cast<int>(faces_.rows()); }
   int num_nodes() const { return static_cast<int>(nodes_.size()); }
 
@@ -106,6 +108,12 @@ struct FeatureLifterOptions {
   double max_depth_jump_mm = 10.0;
   // [mm] hits closer to the camera than this are ignored (the near plane). Default 1e-6.
   double min_ray_distance_mm = 1e-6;
+  // kInterceptTheorem only: move each target along its ray by the change of the model's
+  // half-thickness along that ray since the feature was attached (the first and second
+  // crossing of the ray with the current model surface). Eq. 7.1 carries the front face at
+  // the depth of the projection plane's motion; a body that thins under stretch recedes on
+  // both faces, which the image cannot see but the model's material predicts. Default false.
+  bool follow_model_thinning = false;
   TriangleBvhOptions bvh;
   void Check() const;
 };
@@ -178,11 +186,19 @@ class FeatureLifter {
                              LiftStatus how);
 
   FeatureLifterOptions options_;
+  // Half the distance between the first two crossings of `ray` with the BVH's surface, or
+  // nullopt when the ray does not cross it twice or the two faces it crosses are not within
+  // 30 degrees of parallel (near an edge the ray leaves through a side, and that chord is no
+  // thickness).
+  std::optional<double> HalfThickness(const Ray& ray) const;
+
   TriangleBvh bvh_;
   bool have_surface_ = false;
   Plane plane_;
-  RowMatX3d targets_;        // p^1_F (surface or plane variant)
-  RowMatX3d plane_targets_;  // p^1_FP(t), for eq. 7.1
+  RowMatX3d targets_;                   // p^1_F (surface or plane variant)
+  RowMatX3d plane_targets_;             // p^1_FP(t), for eq. 7.1
+  RowMatX3d intercept_targets_;         // eq. 7.1 alone (follow_model_thinning)
+  std::vector<double> half_thickness_;  // at attachment [mm]; NaN: unknown
   std::vector<char> plane_valid_;
   std::vector<char> attached_;
   std::vector<LiftStatus> status_;

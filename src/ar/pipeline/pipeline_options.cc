@@ -191,6 +191,7 @@ void ReadLifting(const Scene& scene, lift::FeatureLifterOptions* o) {
   o->surface_update = update == "raycast" ? lift::SurfaceUpdate::kRayCastWithFallback
                                           : lift::SurfaceUpdate::kInterceptTheorem;
   r.Optional("max_depth_jump_mm", &o->max_depth_jump_mm);
+  r.Optional("follow_model_thinning", &o->follow_model_thinning);
   r.Finish();
 }
 
@@ -365,7 +366,8 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"surface_update", o.lifting.surface_update == lift::SurfaceUpdate::kRayCastWithFallback
                              ? "raycast"
                              : "intercept"},
-      {"max_depth_jump_mm", o.lifting.max_depth_jump_mm}};
+      {"max_depth_jump_mm", o.lifting.max_depth_jump_mm},
+      {"follow_model_thinning", o.lifting.follow_model_thinning}};
   j["mechanics"] = {
       {"spring_stiffness_relative", o.mechanics.spring_stiffness_relative},
       {"volume_term",

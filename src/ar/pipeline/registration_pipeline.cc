@@ -698,7 +698,8 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       // Lifting.
       t0 = now();
       const RowMatX3d* cast_surface = nullptr;
-      if (o.lifting.surface_update == lift::SurfaceUpdate::kRayCastWithFallback) {
+      if (o.lifting.surface_update == lift::SurfaceUpdate::kRayCastWithFallback ||
+          o.lifting.follow_model_thinning) {
         // The frame-0 boundary's vertices keep their indices through cuts (cuts only add).
         frame0_surface_vertices =
             thin ? lift_vertices() : RowMatX3d(state.positions().topRows(organ_vertices));
