@@ -354,6 +354,22 @@ TEST(FeatureLifter, FollowModelThinningPutsTargetsOnTheRecedingFrontFace) {
       }
     }
   }
+  // A back face tilted by 45 degrees (a ray leaving through a side, not a slab's back): the chord
+  // is no thickness, so its change moves no target.
+  SurfaceMesh wedge = slab;
+  wedge.vertices.bottomRows(nv).col(2) += wedge.vertices.bottomRows(nv).col(0);
+  wedge.vertices.bottomRows(nv).col(2).array() += 40.0;
+  RowMatX3d wedge_thinned = wedge.vertices;
+  wedge_thinned.topRows(nv).col(2).array() += 1.0;
+  wedge_thinned.bottomRows(nv).col(2).array() -= 1.0;
+  {
+    FeatureLifterOptions o;
+    o.follow_model_thinning = true;
+    FeatureLifter lifter(o);
+    lifter.Attach(camera, pixels, &wedge, std::nullopt);
+    lifter.Update(camera, pixels, {}, &wedge_thinned);
+    for (int r = 0; r < 3; ++r) EXPECT_NEAR(lifter.targets_mm()(r, 2), 100.0, 1e-9) << r;
+  }
   // Without the surface it cannot measure the thickness.
   FeatureLifterOptions o;
   o.follow_model_thinning = true;
