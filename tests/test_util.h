@@ -4,6 +4,7 @@
 
 #include <sys/wait.h>
 
+#include <gtest/gtest.h>
 #include <Eigen/Core>
 #include <array>
 #include <cstdio>
@@ -30,10 +31,19 @@ inline std::string SharedDataPath(const std::string& relative) {
   return fs::exists(p, ec) ? fs::weakly_canonical(p).string() : std::string();
 }
 
-// A fresh, empty scratch directory under the build tree for this test.
+// A fresh, empty scratch directory under the build tree, inside a folder named after the
+// running test: ctest runs tests as parallel processes, and two tests that build the same
+// fixture (the same `name`) must not remove each other's files.
 inline std::string ScratchDir(const std::string& name) {
   namespace fs = std::filesystem;
-  const fs::path p = fs::path(ARREG_BINARY_DIR) / "test_scratch" / name;
+  fs::path p = fs::path(ARREG_BINARY_DIR) / "test_scratch";
+  if (const ::testing::TestInfo* test = ::testing::UnitTest::GetInstance()->current_test_info()) {
+    std::string folder = std::string(test->test_suite_name()) + "." + test->name();
+    for (char& c : folder)
+      if (c == '/') c = '_';
+    p /= folder;
+  }
+  p /= name;
   fs::remove_all(p);
   fs::create_directories(p);
   return p.string();
