@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <random>
 #include <set>
 #include <string>
 #include <utility>
@@ -235,6 +236,50 @@ TEST(Pipeline, FollowsARigidShift) {
   EXPECT_NEAR(moved.y(), 0.0, 0.3);
   EXPECT_NEAR(moved.z(), 0.0, 0.3);
   EXPECT_LT(probe.last_mean_mm, 0.3);
+}
+
+// A video with random bytes over a stretch in its middle: the damaged frames are not tracked
+// (the reader stands the last good frame in for them), they are listed in run.json and marked in
+// frames.jsonl, no feature is lost on them, and the run processes every frame and follows the
+// shift. (The frames after them up to the next key frame decode smeared without an error flag;
+// the tracker's own checks drop most features there.)
+TEST(Pipeline, DamagedFramesAreSkippedAndReported) {
+  const BoxScene b =
+      MakeBoxScene("pipeline_damaged", 40, [](int f) { return 0.25 * std::min(f, 32); });
+  {
+    namespace fs = std::filesystem;
+    const std::string video = b.dir + "/video.mp4";
+    std::fstream f(video, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(static_cast<std::streamoff>(fs::file_size(video) * 6 / 10));
+    std::mt19937 rng(5);
+    for (int i = 0; i < 3000; ++i) f.put(static_cast<char>(rng() & 0xff));
+  }
+  PipelineOptions o = ReadPipelineOptions(b.scene);
+  o.render.enabled = false;
+  std::atomic<bool> never{false};
+  StopAfter probe(-1, &never);
+  const std::string out = b.dir + "/run";
+  RecordWriter records(out, false);
+  RegistrationPipeline pipe(b.scene, o);
+  pipe.AddObserver(&probe);
+  pipe.AddObserver(&records);
+  const RunSummary s = pipe.Run();
+  EXPECT_EQ(s.frames, 40);
+  ASSERT_FALSE(s.damaged_frames.empty());
+  EXPECT_GT(s.damaged_frames.front(), 5);
+  const Eigen::Vector3d moved = probe.centroid - probe.rest_centroid;
+  EXPECT_NEAR(moved.x(), 8.0, 0.4);
+  EXPECT_NEAR(moved.y(), 0.0, 0.4);
+
+  const nlohmann::json run_json = ParseJsonFile(out + "/run.json");
+  EXPECT_EQ(run_json.at("damaged_frames").get<std::vector<int>>(), s.damaged_frames);
+  std::vector<int> marked;
+  for (const nlohmann::json& line : ReadJsonl(out + "/frames.jsonl"))
+    if (line.value("damaged", false)) {
+      marked.push_back(line.at("frame").get<int>());
+      EXPECT_EQ(line.at("lost").get<int>(), 0) << "a damaged frame is not tracked";
+    }
+  EXPECT_EQ(marked, s.damaged_frames);
 }
 
 // Features that join later (tracking.redetect_every_frames): a flat occluder hides a quarter

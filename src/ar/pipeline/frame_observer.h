@@ -83,6 +83,9 @@ struct FrameStats {
   int outliers = 0;        // features dropped by the spatio-temporal filter this frame
   int lost = 0;            // features lost this frame (any reason)
   int added = 0;           // features re-detected and attached this frame (fill-in of holes)
+  // The video's frame was damaged (the reader stood the last good frame in for it): it was
+  // not tracked; the model stepped towards the targets it already had.
+  bool damaged = false;
   double spring_length_mean_mm = 0, spring_length_max_mm = 0;  // over alive springs
   int inverted_elements = 0;
   std::string mechanics_status;   // StepStatusName of the integrator
@@ -149,7 +152,8 @@ struct RunSummary {
   StageTimes total_ms;       // summed over frames
   int cut_events = 0;
   int cuts_applied = 0;
-  double seconds = 0;  // wall time of the run loop
+  std::vector<int> damaged_frames;  // frames the video had damaged (not tracked), ascending
+  double seconds = 0;               // wall time of the run loop
 };
 
 // Hooks called by RegistrationPipeline::Run, in the order observers were added.

@@ -33,6 +33,7 @@ nlohmann::json FrameRecord(const FrameState& f) {
   j["features_added"] = f.stats.added;
   j["outliers"] = f.stats.outliers;
   j["lost"] = f.stats.lost;
+  if (f.stats.damaged) j["damaged"] = true;
   const bool any = f.stats.features_alive > 0;
   j["spring_length_mean_mm"] = any ? Finite(f.stats.spring_length_mean_mm) : nlohmann::json();
   j["spring_length_max_mm"] = any ? Finite(f.stats.spring_length_max_mm) : nlohmann::json();
@@ -159,6 +160,7 @@ void RecordWriter::OnFinish(const RunSummary& s) {
   run_["interrupted"] = s.interrupted;
   run_["cut_events"] = s.cut_events;
   run_["cuts_applied"] = s.cuts_applied;
+  run_["damaged_frames"] = s.damaged_frames;
   run_["seconds"] = s.seconds;
   nlohmann::json totals = s.total_ms.ToJson();
   nlohmann::json per_stage_fps = nlohmann::json::object();

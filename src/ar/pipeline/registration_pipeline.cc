@@ -581,6 +581,11 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       t0 = now();
       if (!reader.Read(&bgr)) break;
       ms.decode = since(t0);
+      // A damaged frame is the last good one again: tracking it would read as a standstill
+      // of every feature, so it is skipped and the next good frame is tracked from the last.
+      const std::vector<int>& damaged = reader.damaged_frames();
+      stats.damaged = std::find(damaged.begin(), damaged.end(), frame) != damaged.end();
+      if (stats.damaged) summary.damaged_frames.push_back(frame);
 
       // Tracking.
       t0 = now();
@@ -598,7 +603,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
               cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * o.roi_dilation_px + 1,
                                                                     2 * o.roi_dilation_px + 1)));
       }
-      tracker.Track(bgr, frame_roi);
+      if (!stats.damaged) tracker.Track(bgr, frame_roi);
       // Re-detected features through their probation (attach_after_frames): attached below.
       std::vector<const FeatureState*> detected;
       for (const FeatureState& f : tracker.current()) {
