@@ -93,7 +93,7 @@ inline std::vector<cutting::DetectionResult> RecordRun(const std::string& run_di
       continue;
     }
     features[r].spring = static_cast<int>(detector_ids.size());
-    features[r].alive = features[r].spring_active = true;
+    features[r].alive = features[r].spring_active = features[r].attached = true;
     features[r].lift_status = lift::LiftStatus::kSurfaceHit;
     detector_ids.push_back(r);
   }
