@@ -215,7 +215,9 @@ class Hourglass:
     """Stretch along y to `stretch` x H at the top with a waist: the lateral (x) and thickness
     (z) contraction is 1 - waist sin^2(pi eta) (eta = y / H; none at the held bottom and at the
     gripped top), and the axial stretch is distributed along y as 1 / contraction^2 so that the
-    cross-section area times the axial stretch stays constant (incompressible in the mean)."""
+    cross-section area times the axial stretch is the same everywhere: the volume ratio is
+    J = stretch / mean(1 / c^2) at every point, above 1 for the drawn stretches (the band gains
+    volume, unlike nearly incompressible tissue)."""
 
     def __init__(self, band, stretch, waist, profile):
         self.band, self.stretch, self.waist, self.profile = band, stretch, waist, profile
