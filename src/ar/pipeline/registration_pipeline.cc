@@ -221,6 +221,182 @@ std::vector<char> ModelAgrees(const RowMatX3d& points_mm, const RowMatX3d& ancho
   return agrees;
 }
 
+// Adds the time from its construction to its end to one stage's milliseconds: every stage of
+// the loop is timed through one of these, on the run's clock (RunOptions::thread_cpu_clock).
+class StageTimer {
+ public:
+  StageTimer(bool thread_cpu, double* stage_ms)
+      : thread_cpu_(thread_cpu), stage_ms_(stage_ms), start_(NowMs(thread_cpu)) {}
+  ~StageTimer() { Stop(); }
+  // Ends the timing before the scope does (the setup's stages declare what later code uses).
+  void Stop() {
+    if (stage_ms_ != nullptr) *stage_ms_ += NowMs(thread_cpu_) - start_;
+    stage_ms_ = nullptr;
+  }
+  StageTimer(const StageTimer&) = delete;
+  StageTimer& operator=(const StageTimer&) = delete;
+
+ private:
+  bool thread_cpu_;
+  double* stage_ms_;
+  double start_;
+};
+
+// Decode: the next frame into `bgr`; false at the end of the video. A damaged frame (the
+// reader's last good one again) is marked in `stats` and listed in `summary`.
+bool Decode(VideoReader& reader, int frame, cv::Mat* bgr, FrameStats* stats, RunSummary* summary) {
+  if (!reader.Read(bgr)) return false;
+  const std::vector<int>& damaged = reader.damaged_frames();
+  stats->damaged = std::find(damaged.begin(), damaged.end(), frame) != damaged.end();
+  if (stats->damaged) summary->damaged_frames.push_back(frame);
+  return true;
+}
+
+// The region the tracker searches: the projected lifting surface (vertices, faces), dilated by
+// `dilation_px`; empty (the whole image) when `dilation_px` < 0.
+cv::Mat TrackingRegion(const render::RasterCamera& raster, const RowMatX3d& vertices,
+                       const RowMatX3i& faces, int dilation_px) {
+  cv::Mat roi;
+  if (dilation_px < 0) return roi;
+  roi = render::RenderMask(raster, vertices, faces);
+  if (dilation_px > 0)
+    cv::dilate(roi, roi,
+               cv::getStructuringElement(cv::MORPH_ELLIPSE,
+                                         cv::Size(2 * dilation_px + 1, 2 * dilation_px + 1)));
+  return roi;
+}
+
+// Track (after FeatureTracker::Track): the followed features' rows of `features`, `pixels` and
+// `tracked` take the tracker's positions and states; losses are counted in `stats`. Returns the
+// features not followed yet whose probation ended this frame (they join in JoinFeatures).
+std::vector<const FeatureState*> FollowTracks(const FeatureTracker& tracker,
+                                              const std::unordered_map<int, int>& row_of_id,
+                                              int frame, int attach_after_frames,
+                                              std::vector<FeatureView>* features, RowMatX2d* pixels,
+                                              std::vector<char>* tracked, FrameStats* stats) {
+  std::vector<const FeatureState*> detected;
+  for (const FeatureState& f : tracker.current()) {
+    const auto it = row_of_id.find(f.id);
+    if (it == row_of_id.end()) {
+      if (f.status == TrackStatus::kTracked &&
+          ProbationPassed(tracker.store().history(f.id), frame, attach_after_frames))
+        detected.push_back(&f);
+      continue;
+    }
+    FeatureView& v = (*features)[it->second];
+    v.pixel = Eigen::Vector2d(f.position_px.x, f.position_px.y);
+    v.track_status = f.status;
+    pixels->row(it->second) = v.pixel.transpose();
+    if (f.status != TrackStatus::kTracked && (*tracked)[it->second]) {
+      ++stats->lost;
+      if (f.status == TrackStatus::kOutlierSpatioTemporal) ++stats->outliers;
+    }
+  }
+  for (size_t r = 0; r < features->size(); ++r)
+    (*tracked)[r] = (*features)[r].track_status == TrackStatus::kTracked;
+  return detected;
+}
+
+// Mechanics, first half: each active spring follows its feature's target `targets` row; a
+// feature no longer tracked loses its spring (in `thin` where `thin_spring` names one there).
+void FollowTargets(const std::vector<lift::LiftStatus>& lift_status, const RowMatX3d& targets,
+                   const std::vector<char>& tracked, const std::vector<int>& thin_spring,
+                   ThinSystem* thin, mechanics::SpringEnergy* springs,
+                   std::vector<FeatureView>* features) {
+  for (size_t r = 0; r < features->size(); ++r) {
+    FeatureView& v = (*features)[r];
+    v.lift_status = lift_status[r];
+    if (!v.spring_active) continue;
+    if (!tracked[r]) {
+      if (thin_spring[r] >= 0)
+        thin->RemoveFeatureSpring(thin_spring[r]);
+      else
+        springs->Remove(v.spring);
+      v.spring_active = false;
+      continue;
+    }
+    if (thin_spring[r] >= 0)
+      thin->SetFeatureTarget(thin_spring[r], targets.row(r).transpose());
+    else
+      springs->SetTarget(v.spring, targets.row(r).transpose());
+  }
+}
+
+// Mechanics, second half: one implicit Euler step of `state`, in the generalised system
+// `generalised` (thin structures, degree 2 and 3) when there is one, else by `integrator`
+// with `elastic` and `terms`; the step's figures go to `stats`.
+void StepMechanics(ThinSystem* generalised, mechanics::ImplicitEulerIntegrator* integrator,
+                   mechanics::CorotationalElasticity* elastic,
+                   const std::vector<mechanics::EnergyTerm*>& terms,
+                   mechanics::MechanicalState* state, FrameStats* stats) {
+  if (generalised) {
+    const mechanics::GeneralisedSummary step = generalised->Step(state);
+    stats->mechanics_status = mechanics::StepStatusName(step.status);
+    stats->linear_iterations = step.linear_iterations;
+    stats->factorizations = step.factorizations;
+    stats->line_search_cuts = step.line_search_cuts;
+  } else {
+    const mechanics::StepSummary step = integrator->Step(state, elastic, terms);
+    stats->mechanics_status = mechanics::StepStatusName(step.status);
+    stats->inverted_elements = step.inverted_elements;
+    stats->linear_iterations = step.linear_iterations;
+    stats->factorizations = step.factorizations;
+    stats->line_search_cuts = step.line_search_cuts;
+  }
+}
+
+// Detect: the detector's input, the features with an active spring (ids = feature rows) with
+// their targets and their anchors on the model.
+cutting::FrameFeatures DetectorInput(const std::vector<FeatureView>& features,
+                                     const RowMatX3d& targets, const RowMatX3d& anchors) {
+  cutting::FrameFeatures ff;
+  for (size_t r = 0; r < features.size(); ++r)
+    if (features[r].spring_active) ff.ids.push_back(static_cast<int>(r));
+  ff.target_mm.resize(ff.ids.size(), 3);
+  ff.model_mm.resize(ff.ids.size(), 3);
+  for (size_t i = 0; i < ff.ids.size(); ++i) {
+    ff.target_mm.row(i) = targets.row(ff.ids[i]);
+    ff.model_mm.row(i) = anchors.row(ff.ids[i]);
+  }
+  return ff;
+}
+
+// Render: the structures drawn over the organ, the internal ones filled in their scene colours,
+// the thin ones (`thin` non-null only where an organ is drawn under them) as outlines.
+std::vector<OverlayStructure> OverlayStructures(const std::vector<SurfaceMesh>& internal,
+                                                const LoadedModel& model,
+                                                const std::vector<SurfaceMesh>& thin_surfaces,
+                                                const ThinSystem* thin) {
+  std::vector<OverlayStructure> layers;
+  for (size_t k = 0; k < internal.size(); ++k)
+    layers.push_back({&internal[k].vertices, &internal[k].faces, model.internal_colors[k],
+                      model.internal_opacity[k], model.internal_names[k], /*outline=*/false});
+  if (thin)
+    for (size_t k = 0; k < thin_surfaces.size(); ++k)
+      layers.push_back({&thin_surfaces[k].vertices, &thin_surfaces[k].faces, thin->colors()[k],
+                        thin->opacities()[k], thin->names()[k], /*outline=*/true});
+  return layers;
+}
+
+// The frame's spring statistics: a feature is alive while its spring acts; its spring length
+// is |anchor - target|. Fills `alive_rows` (the overlay's) and the features' views.
+void SpringStatistics(const RowMatX3d& anchors, const RowMatX3d& targets,
+                      std::vector<FeatureView>* features, std::vector<char>* alive_rows,
+                      FrameStats* stats) {
+  double sum = 0;
+  for (size_t r = 0; r < features->size(); ++r) {
+    FeatureView& v = (*features)[r];
+    v.alive = v.spring_active;
+    (*alive_rows)[r] = v.alive;
+    v.spring_length_mm = v.alive ? (anchors.row(r) - targets.row(r)).norm() : 0.0;
+    if (!v.alive) continue;
+    ++stats->features_alive;
+    sum += v.spring_length_mm;
+    stats->spring_length_max_mm = std::max(stats->spring_length_max_mm, v.spring_length_mm);
+  }
+  stats->spring_length_mean_mm = stats->features_alive ? sum / stats->features_alive : 0.0;
+}
+
 }  // namespace
 
 RegistrationPipeline::RegistrationPipeline(const Scene& scene, const PipelineOptions& options)
@@ -265,8 +441,6 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   reader.Seek(0);
   const double fps = reader.fps() > 0 ? reader.fps() : 25.0;
   const bool cpu_clock = run_options.thread_cpu_clock;
-  auto now = [cpu_clock] { return NowMs(cpu_clock); };
-  auto since = [cpu_clock](double t) { return NowMs(cpu_clock) - t; };
   int num_frames = reader.frame_count();
   if (o.max_frames > 0) num_frames = std::min(num_frames, o.max_frames);
   int save_every = run_options.save_every;
@@ -402,11 +576,13 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   const render::RasterCamera raster = ToRasterCamera(camera);
   cv::Mat bgr;
   StageTimes ms;
-  auto t0 = now();
-  ARREG_CHECK_INPUT(reader.Read(&bgr), scene.video_path, "frame 0", "cannot read the first frame");
-  ms.decode = since(t0);
+  {
+    StageTimer timer(cpu_clock, &ms.decode);
+    ARREG_CHECK_INPUT(reader.Read(&bgr), scene.video_path, "frame 0",
+                      "cannot read the first frame");
+  }
 
-  t0 = now();
+  StageTimer track_timer(cpu_clock, &ms.track);
   FeatureTracker tracker(o.tracking);
   cv::Mat roi = render::RenderMask(raster, lifted.vertices, lifted.faces);
   tracker.Initialize(bgr, roi);
@@ -423,16 +599,16 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     row_of_id[f.id] = r;
     features.push_back(v);
   }
-  ms.track = since(t0);
+  track_timer.Stop();
   int nf = static_cast<int>(features.size());
 
-  t0 = now();
+  StageTimer lift_timer(cpu_clock, &ms.lift);
   lift::FeatureLifter lifter(o.lifting);
   const std::vector<lift::FeatureAttachment> attachments =
       lifter.Attach(camera, pixels, &lifted, std::nullopt);
-  ms.lift = since(t0);
+  lift_timer.Stop();
 
-  t0 = now();
+  StageTimer springs_timer(cpu_clock, &ms.mechanics);
   RowMatX3d attach_points(nf, 3);
   for (int r = 0; r < nf; ++r) attach_points.row(r) = attachments[r].point_mm.transpose();
   mechanics::EmbeddedPoints feature_embedding;
@@ -495,7 +671,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     }
     v.alive = v.spring_active = v.attached = true;
   }
-  ms.mechanics = since(t0);
+  springs_timer.Stop();
 
   // Cut detection over the attached features (detector ids = feature rows).
   std::optional<cutting::CutDetector> detector;
@@ -578,60 +754,33 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     FrameStats stats;
     if (frame > 0) {
       ms = StageTimes();
-      t0 = now();
-      if (!reader.Read(&bgr)) break;
-      ms.decode = since(t0);
-      // A damaged frame is the last good one again: tracking it would read as a standstill
-      // of every feature, so it is skipped and the next good frame is tracked from the last.
-      const std::vector<int>& damaged = reader.damaged_frames();
-      stats.damaged = std::find(damaged.begin(), damaged.end(), frame) != damaged.end();
-      if (stats.damaged) summary.damaged_frames.push_back(frame);
+      {
+        StageTimer timer(cpu_clock, &ms.decode);
+        if (!Decode(reader, frame, &bgr, &stats, &summary)) break;
+      }
 
-      // Tracking.
-      t0 = now();
-      cv::Mat frame_roi;
-      if (o.roi_dilation_px >= 0) {
-        if (thin)
-          frame_roi = render::RenderMask(raster, lift_vertices(), lift_surface.faces);
-        else if (curved)
-          frame_roi = render::RenderMask(raster, curved_surface.vertices, curved_surface.faces);
-        else
-          frame_roi = render::RenderMask(raster, state.positions(), surface.faces);
-        if (o.roi_dilation_px > 0)
-          cv::dilate(
-              frame_roi, frame_roi,
-              cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * o.roi_dilation_px + 1,
-                                                                    2 * o.roi_dilation_px + 1)));
-      }
-      if (!stats.damaged) tracker.Track(bgr, frame_roi);
-      // Re-detected features through their probation (attach_after_frames): attached below.
+      // Track. A damaged frame is the last good one again: tracking it would read as a
+      // standstill of every feature, so it is skipped and the next good frame is tracked from
+      // the last. Re-detected features through their probation (attach_after_frames) join below.
       std::vector<const FeatureState*> detected;
-      for (const FeatureState& f : tracker.current()) {
-        const auto it = row_of_id.find(f.id);
-        if (it == row_of_id.end()) {
-          if (f.status == TrackStatus::kTracked &&
-              ProbationPassed(tracker.store().history(f.id), frame, o.attach_after_frames))
-            detected.push_back(&f);
-          continue;
-        }
-        FeatureView& v = features[it->second];
-        v.pixel = Eigen::Vector2d(f.position_px.x, f.position_px.y);
-        v.track_status = f.status;
-        pixels.row(it->second) = v.pixel.transpose();
-        if (f.status != TrackStatus::kTracked && tracked[it->second]) {
-          ++stats.lost;
-          if (f.status == TrackStatus::kOutlierSpatioTemporal) ++stats.outliers;
-        }
+      {
+        StageTimer timer(cpu_clock, &ms.track);
+        const cv::Mat frame_roi =
+            thin ? TrackingRegion(raster, lift_vertices(), lift_surface.faces, o.roi_dilation_px)
+            : curved ? TrackingRegion(raster, curved_surface.vertices, curved_surface.faces,
+                                      o.roi_dilation_px)
+                     : TrackingRegion(raster, state.positions(), surface.faces, o.roi_dilation_px);
+        if (!stats.damaged) tracker.Track(bgr, frame_roi);
+        detected = FollowTracks(tracker, row_of_id, frame, o.attach_after_frames, &features,
+                                &pixels, &tracked, &stats);
       }
-      for (int r = 0; r < nf; ++r) tracked[r] = features[r].track_status == TrackStatus::kTracked;
-      ms.track = since(t0);
 
       // Features re-detected in holes (tracking.redetect_every_frames) join like frame 0's:
       // cast against the model as it stands, embedded where the ray meets it, their rest
       // points (the configuration the detector compares with) carried back by that embedding,
       // and a zero-length spring each.
       if (!detected.empty()) {
-        t0 = now();
+        StageTimer timer(cpu_clock, &ms.lift);
         const int added = static_cast<int>(detected.size());
         RowMatX2d new_pixels(added, 2);
         for (int k = 0; k < added; ++k)
@@ -697,79 +846,44 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
             joining_rest.row(k) = attach_points.row(joining[k]);
           detector->AddFeatures(joining_rest, joining);
         }
-        ms.lift += since(t0);
       }
 
-      // Lifting.
-      t0 = now();
-      const RowMatX3d* cast_surface = nullptr;
-      if (o.lifting.surface_update == lift::SurfaceUpdate::kRayCastWithFallback ||
-          o.lifting.follow_model_thinning) {
-        // The frame-0 boundary's vertices keep their indices through cuts (cuts only add).
-        frame0_surface_vertices =
-            thin ? lift_vertices() : RowMatX3d(state.positions().topRows(organ_vertices));
-        cast_surface = &frame0_surface_vertices;
+      // Lift: the tracked pixels to 3D targets.
+      {
+        StageTimer timer(cpu_clock, &ms.lift);
+        const RowMatX3d* cast_surface = nullptr;
+        if (o.lifting.surface_update == lift::SurfaceUpdate::kRayCastWithFallback ||
+            o.lifting.follow_model_thinning) {
+          // The frame-0 boundary's vertices keep their indices through cuts (cuts only add).
+          frame0_surface_vertices =
+              thin ? lift_vertices() : RowMatX3d(state.positions().topRows(organ_vertices));
+          cast_surface = &frame0_surface_vertices;
+        }
+        lifter.Update(camera, pixels, tracked, cast_surface);
+        targets = lifter.targets_mm();
       }
-      lifter.Update(camera, pixels, tracked, cast_surface);
-      targets = lifter.targets_mm();
-      ms.lift += since(t0);
 
       // Mechanics: springs follow the targets, one implicit Euler step.
-      t0 = now();
-      for (int r = 0; r < nf; ++r) {
-        FeatureView& v = features[r];
-        v.lift_status = lifter.status()[r];
-        if (!v.spring_active) continue;
-        if (!tracked[r]) {
-          if (thin_spring[r] >= 0)
-            thin->RemoveFeatureSpring(thin_spring[r]);
-          else
-            springs.Remove(v.spring);
-          v.spring_active = false;
-          continue;
-        }
-        if (thin_spring[r] >= 0)
-          thin->SetFeatureTarget(thin_spring[r], targets.row(r).transpose());
-        else
-          springs.SetTarget(v.spring, targets.row(r).transpose());
-      }
-      if (thin || curved) {
-        const mechanics::GeneralisedSummary step =
-            thin ? thin->Step(&state) : curved_system->Step(&state);
-        stats.mechanics_status = mechanics::StepStatusName(step.status);
-        stats.linear_iterations = step.linear_iterations;
-        stats.factorizations = step.factorizations;
-        stats.line_search_cuts = step.line_search_cuts;
-      } else {
-        const mechanics::StepSummary step = integrator.Step(&state, &elastic, terms);
-        stats.mechanics_status = mechanics::StepStatusName(step.status);
-        stats.inverted_elements = step.inverted_elements;
-        stats.linear_iterations = step.linear_iterations;
-        stats.factorizations = step.factorizations;
-        stats.line_search_cuts = step.line_search_cuts;
-      }
+      StageTimer timer(cpu_clock, &ms.mechanics);
+      FollowTargets(lifter.status(), targets, tracked, thin_spring, thin ? &*thin : nullptr,
+                    &springs, &features);
+      StepMechanics(thin     ? &*thin
+                    : curved ? &*curved_system
+                             : nullptr,
+                    &integrator, &elastic, terms, &state, &stats);
       if (cut_handler) cut_handler->FollowWelds(&state);
-      ms.mechanics = since(t0);
     } else {
       stats.mechanics_status = mechanics::StepStatusName(mechanics::StepStatus::kConverged);
     }
-    t0 = now();
-    update_anchors(&anchors);
-    ms.mechanics += since(t0);
+    {
+      StageTimer timer(cpu_clock, &ms.mechanics);
+      update_anchors(&anchors);
+    }
 
-    // Cutting.
+    // Detect, and cut on a new segment.
     if (topology) {
-      t0 = now();
-      cutting::FrameFeatures ff;
-      for (int r = 0; r < nf; ++r)
-        if (features[r].spring_active) ff.ids.push_back(r);
-      ff.target_mm.resize(ff.ids.size(), 3);
-      ff.model_mm.resize(ff.ids.size(), 3);
-      for (size_t i = 0; i < ff.ids.size(); ++i) {
-        ff.target_mm.row(i) = targets.row(ff.ids[i]);
-        ff.model_mm.row(i) = anchors.row(ff.ids[i]);
-      }
-      detector->Update(ff, &detection);
+      StageTimer timer(cpu_clock, &ms.cutting);
+      detector->Update(DetectorInput(features, targets, anchors), &detection);
       if (detection.segment_added && detection.extended_polyline_mm.size() >= 2) {
         SurfaceMesh s;
         const std::vector<Eigen::Vector3d> rest_polyline = detector->ExtendedPolyline(true);
@@ -808,65 +922,45 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
         events.push_back(ev);
         ++summary.cut_events;
       }
-      ms.cutting = since(t0);
     }
 
     // The output configuration (docs/springs.md, "Output fit"), embedded structures, the
-    // boundary; statistics.
-    t0 = now();
+    // boundary; statistics (timed with the mechanics).
     const RowMatX3d* shown = &state.positions();
-    if (output_fit) {
-      const mechanics::StepSummary fit = output_fit->Fit(state, springs, other_terms);
-      stats.output_fit_status = mechanics::StepStatusName(fit.status);
-      shown = &output_fit->positions();
-    }
-    surface.vertices = *shown;
-    if (thin) {
-      thin_surfaces = thin->Surfaces();
-      // Without an organ the structures are what is registered: surface/ and the overlay's
-      // contour show the shells and vessels together.
-      if (!has_tets) surface = MergeSurfaces(thin_surfaces);
-    }
-    if (curved) {
-      const RowMatX3d nodes = curved->NodePositions(curved_system->state());
-      curved_surface.vertices = curved_boundary->vertices.Positions(nodes);
-      for (size_t k = 0; k < internal.size(); ++k)
-        internal[k].vertices = internal_curved[k].Positions(nodes);
-    } else {
-      for (size_t k = 0; k < internal.size(); ++k)
-        internal_embedding[k].Positions(*shown, state.tetrahedra(), &internal[k].vertices);
+    {
+      StageTimer timer(cpu_clock, &ms.mechanics);
+      if (output_fit) {
+        const mechanics::StepSummary fit = output_fit->Fit(state, springs, other_terms);
+        stats.output_fit_status = mechanics::StepStatusName(fit.status);
+        shown = &output_fit->positions();
+      }
+      surface.vertices = *shown;
+      if (thin) {
+        thin_surfaces = thin->Surfaces();
+        // Without an organ the structures are what is registered: surface/ and the overlay's
+        // contour show the shells and vessels together.
+        if (!has_tets) surface = MergeSurfaces(thin_surfaces);
+      }
+      if (curved) {
+        const RowMatX3d nodes = curved->NodePositions(curved_system->state());
+        curved_surface.vertices = curved_boundary->vertices.Positions(nodes);
+        for (size_t k = 0; k < internal.size(); ++k)
+          internal[k].vertices = internal_curved[k].Positions(nodes);
+      } else {
+        for (size_t k = 0; k < internal.size(); ++k)
+          internal_embedding[k].Positions(*shown, state.tetrahedra(), &internal[k].vertices);
+      }
+      SpringStatistics(anchors, targets, &features, &alive_rows, &stats);
     }
     // What is shown, saved and evaluated: the curved boundary's tessellation at degree 2, 3.
     const SurfaceMesh& shown_surface = curved ? curved_surface : surface;
-    double sum = 0;
-    for (int r = 0; r < nf; ++r) {
-      FeatureView& v = features[r];
-      v.alive = v.spring_active;
-      alive_rows[r] = v.alive;
-      v.spring_length_mm = v.alive ? (anchors.row(r) - targets.row(r)).norm() : 0.0;
-      if (!v.alive) continue;
-      ++stats.features_alive;
-      sum += v.spring_length_mm;
-      stats.spring_length_max_mm = std::max(stats.spring_length_max_mm, v.spring_length_mm);
-    }
-    stats.spring_length_mean_mm = stats.features_alive ? sum / stats.features_alive : 0.0;
-    ms.mechanics += since(t0);
 
     // Render and encode.
     if (o.render.enabled) {
-      t0 = now();
+      StageTimer timer(cpu_clock, &ms.render);
       bgr.copyTo(overlay_image);
-      std::vector<OverlayStructure> layers_internal;
-      for (size_t k = 0; k < internal.size(); ++k)
-        layers_internal.push_back({&internal[k].vertices, &internal[k].faces,
-                                   impl_->model.internal_colors[k],
-                                   impl_->model.internal_opacity[k], impl_->model.internal_names[k],
-                                   /*outline=*/false});
-      if (thin && has_tets)
-        for (size_t k = 0; k < thin_surfaces.size(); ++k)
-          layers_internal.push_back({&thin_surfaces[k].vertices, &thin_surfaces[k].faces,
-                                     thin->colors()[k], thin->opacities()[k], thin->names()[k],
-                                     /*outline=*/true});
+      const std::vector<OverlayStructure> layers_internal = OverlayStructures(
+          internal, impl_->model, thin_surfaces, thin && has_tets ? &*thin : nullptr);
       OverlayLayers layers;
       layers.feature_pixels = &pixels;
       layers.targets_mm = &targets;
@@ -875,14 +969,12 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
       layers.frame = frame;
       overlay.Render(shown_surface.vertices, shown_surface.faces, layers_internal, layers,
                      &overlay_image);
-      ms.render = since(t0);
     } else {
       overlay_image = cv::Mat();
     }
     if (writer.is_open()) {
-      t0 = now();
+      StageTimer timer(cpu_clock, &ms.encode);
       writer.Write(overlay_image.empty() ? bgr : overlay_image);
-      ms.encode = since(t0);
     }
 
     const bool stopping = run_options.stop != nullptr && run_options.stop->load();
@@ -911,9 +1003,10 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     }
     fs.stats = stats;
     fs.ms = ms;
-    t0 = now();
-    for (FrameObserver* ob : impl_->observers) ob->OnFrame(fs);
-    ms.record = since(t0);
+    {
+      StageTimer timer(cpu_clock, &ms.record);
+      for (FrameObserver* ob : impl_->observers) ob->OnFrame(fs);
+    }
     summary.total_ms += ms;
     ++summary.frames;
     if (stopping && frame < num_frames - 1) {
@@ -922,9 +1015,8 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     }
   }
   if (writer.is_open()) {
-    const double t = now();
+    StageTimer timer(cpu_clock, &summary.total_ms.encode);
     writer.Close();
-    summary.total_ms.encode += since(t);
   }
   summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - run_start).count();
