@@ -376,7 +376,7 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
       ev.status = CutEventStatus::kCut;
       ev.depth_fraction = depth;
       if (in_rest && applied_points_.empty()) depth_of_cut_ = depth;
-      ev.configuration = in_rest ? "rest" : "current";
+      ev.configuration = in_rest ? CutConfiguration::kRest : CutConfiguration::kCurrent;
       ev.polyline_rest_mm = plan.polyline_rest_mm;
       const int v_before = state.num_vertices(), t_before = state.num_tetrahedra();
       std::vector<int> new_elements;

@@ -5,10 +5,12 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "ar/lift/lifting.h"
+#include "ar/pipeline/pipeline_options.h"
 #include "core/mesh.h"
 #include "core/scene.h"
 #include "cutting/detection.h"
@@ -82,9 +84,10 @@ struct CutEvent {
   // Depth of the applied S behind the polyline, as a fraction of the extent that covers the
   // model (below 1 when CuttingStageOptions::keep_connected cut again shallower); 0 if none.
   double depth_fraction = 0.0;
-  // Configuration S was built and cut in: "rest" or "current" (CuttingStageOptions::
-  // cut_configuration; "current" also when the rest one could not apply); "" if none.
-  std::string configuration;
+  // Configuration S was built and cut in (CuttingStageOptions::cut_configuration; kCurrent also
+  // when the rest one could not apply); none when nothing was cut. Written as "rest", "current"
+  // or "".
+  std::optional<CutConfiguration> configuration;
   // Vertices of debris (pieces below 0.5 % of the rest volume) welded to the nearest piece by
   // this event (CutHandler::FollowWelds).
   int welded_vertices = 0;

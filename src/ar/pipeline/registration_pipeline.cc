@@ -61,7 +61,7 @@ nlohmann::json CutEvent::ToJson() const {
                       {"internal_triangles_removed", internal_triangles_removed},
                       {"internal_cap_faces", internal_cap_faces},
                       {"depth_fraction", depth_fraction},
-                      {"configuration", configuration},
+                      {"configuration", configuration ? CutConfigurationName(*configuration) : ""},
                       {"welded_vertices", welded_vertices},
                       {"polyline_rest_mm", polyline}};
   if (thin) {
