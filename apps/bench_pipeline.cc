@@ -35,7 +35,8 @@ class TimeCollector : public pipeline::FrameObserver {
     linear_iterations += f.stats.linear_iterations;
     factorizations += f.stats.factorizations;
     if (f.cut_events)
-      for (const pipeline::CutEvent& e : *f.cut_events) cuts_applied += e.status == "cut";
+      for (const pipeline::CutEvent& e : *f.cut_events)
+        cuts_applied += e.status == pipeline::CutEventStatus::kCut;
   }
   pipeline::StageTimes sum;
   int frames = 0;

@@ -12,6 +12,26 @@
 namespace arreg {
 namespace fs = std::filesystem;
 
+const char* ThinStructureTypeName(ThinStructureType type) {
+  switch (type) {
+    case ThinStructureType::kShell:
+      return "shell";
+    case ThinStructureType::kVessel:
+      return "vessel";
+  }
+  return "?";
+}
+
+const char* ThinAttachmentName(ThinAttachment attachment) {
+  switch (attachment) {
+    case ThinAttachment::kNone:
+      return "none";
+    case ThinAttachment::kModel:
+      return "model";
+  }
+  return "?";
+}
+
 namespace {
 
 const std::vector<std::string> kModuleSections = {"tracking", "mechanics", "lifting",
@@ -96,8 +116,10 @@ ThinStructure ReadThinStructure(JsonObjectReader& r, const Scene& scene, bool ch
   ThinStructure t;
   r.Required("name", &t.name);
   if (t.name.empty()) r.Fail("name", "must not be empty");
-  r.RequiredChoice("type", {"shell", "vessel"}, &t.type);
-  if (t.type == "shell") {
+  std::string type;
+  r.RequiredChoice("type", {"shell", "vessel"}, &type);
+  t.type = type == "shell" ? ThinStructureType::kShell : ThinStructureType::kVessel;
+  if (t.type == ThinStructureType::kShell) {
     RejectKeys(r, {"centreline", "radius_mm"}, "shell");
     t.mesh_path = ReadPath(r, "mesh", scene, true, check, PathKind::kFile);
     t.visual_mesh_path = ReadPath(r, "visual_mesh", scene, false, check, PathKind::kFile);
@@ -110,7 +132,7 @@ ThinStructure ReadThinStructure(JsonObjectReader& r, const Scene& scene, bool ch
     r.CheckPositive("radius_mm", t.radius_mm);
   }
   if (!std::isfinite(t.thickness_mm) || !std::isfinite(t.radius_mm))
-    r.Fail(t.type == "shell" ? "thickness_mm" : "radius_mm", "must be finite");
+    r.Fail(t.type == ThinStructureType::kShell ? "thickness_mm" : "radius_mm", "must be finite");
   t.material = scene.material;
   if (auto material = r.OptionalObject("material"))
     t.material = ReadMaterial(*material, scene.material);
@@ -121,7 +143,9 @@ ThinStructure ReadThinStructure(JsonObjectReader& r, const Scene& scene, bool ch
     if (!fixed.insert(v).second)
       r.Fail("fixed_vertices", "vertex " + std::to_string(v) + " is listed twice");
   }
-  r.OptionalChoice("attach", {"none", "model"}, &t.attach);
+  std::string attach = ThinAttachmentName(t.attach);
+  r.OptionalChoice("attach", {"none", "model"}, &attach);
+  t.attach = attach == "model" ? ThinAttachment::kModel : ThinAttachment::kNone;
   r.Optional("attach_distance_mm", &t.attach_distance_mm);
   r.CheckNonNegative("attach_distance_mm", t.attach_distance_mm);
   if (!std::isfinite(t.attach_distance_mm)) r.Fail("attach_distance_mm", "must be finite");
@@ -329,8 +353,8 @@ nlohmann::json SceneToJson(const Scene& scene, const std::string& directory) {
   if (!scene.thin_structures.empty()) {
     nlohmann::json list = nlohmann::json::array();
     for (const ThinStructure& t : scene.thin_structures) {
-      nlohmann::json o = {{"name", t.name}, {"type", t.type}};
-      if (t.type == "shell") {
+      nlohmann::json o = {{"name", t.name}, {"type", ThinStructureTypeName(t.type)}};
+      if (t.type == ThinStructureType::kShell) {
         o["mesh"] = PathForWriting(t.mesh_path, directory);
         if (!t.visual_mesh_path.empty())
           o["visual_mesh"] = PathForWriting(t.visual_mesh_path, directory);
@@ -341,7 +365,7 @@ nlohmann::json SceneToJson(const Scene& scene, const std::string& directory) {
       }
       o["material"] = MaterialToJson(t.material);
       if (!t.fixed_vertices.empty()) o["fixed_vertices"] = t.fixed_vertices;
-      o["attach"] = t.attach;
+      o["attach"] = ThinAttachmentName(t.attach);
       o["attach_distance_mm"] = t.attach_distance_mm;
       o["color"] = {t.color.x(), t.color.y(), t.color.z()};
       o["opacity"] = t.opacity;
@@ -368,17 +392,13 @@ void WriteScene(const std::string& path, const Scene& scene) {
     const ThinStructure& t = scene.thin_structures[i];
     const std::string key = "thin_structures[" + std::to_string(i) + "]";
     ARREG_CHECK_INPUT(!t.name.empty(), path, key + ".name", "must not be empty");
-    ARREG_CHECK_INPUT(t.type == "shell" || t.type == "vessel", path, key + ".type",
-                      "must be \"shell\" or \"vessel\", got \"", t.type, "\"");
-    const bool shell = t.type == "shell";
+    const bool shell = t.type == ThinStructureType::kShell;
     ARREG_CHECK_INPUT(!(shell ? t.mesh_path : t.centreline_path).empty(), path,
                       key + (shell ? ".mesh" : ".centreline"), "path is empty");
     const double size = shell ? t.thickness_mm : t.radius_mm;
     ARREG_CHECK_INPUT(size > 0.0 && std::isfinite(size), path,
                       key + (shell ? ".thickness_mm" : ".radius_mm"), "must be positive, got ",
                       size);
-    ARREG_CHECK_INPUT(t.attach == "none" || t.attach == "model", path, key + ".attach",
-                      "must be \"none\" or \"model\", got \"", t.attach, "\"");
     t.material.Check(path, key + ".material");
   }
   ARREG_CHECK_INPUT(!scene.video_path.empty(), path, "video", "scene has no video path");

@@ -34,9 +34,17 @@ struct InternalStructure {
 // A thin structure registered with (or instead of) the organ: a shell (a triangle
 // mid-surface with a thickness, src/mechanics/bezier_shell.h) or a vessel (a
 // centreline tree with a radius, src/mechanics/vessel.h). docs/scene-format.md.
+enum class ThinStructureType { kShell, kVessel };
+// The spelling in scene files: "shell", "vessel".
+const char* ThinStructureTypeName(ThinStructureType type);
+// kModel: tied to the tet model by proximity.
+enum class ThinAttachment { kNone, kModel };
+// The spelling in scene files: "none", "model".
+const char* ThinAttachmentName(ThinAttachment attachment);
+
 struct ThinStructure {
-  std::string name;                 // unique among thin and internal structures
-  std::string type;                 // "shell" or "vessel"
+  std::string name;  // unique among thin and internal structures
+  ThinStructureType type = ThinStructureType::kShell;
   std::string mesh_path;            // shell: triangle mid-surface (resolved), model frame and units
   std::string visual_mesh_path;     // shell, optional: finer surface drawn and scored, "" if none
   std::string centreline_path;      // vessel: OBJ with v lines and l polylines (resolved)
@@ -44,7 +52,7 @@ struct ThinStructure {
   double radius_mm = 0.0;           // vessel: > 0, mm
   Material material;                // default: the scene's top-level material
   std::vector<int> fixed_vertices;  // indices into mesh / centreline vertices, held clamped
-  std::string attach = "none";      // "none" or "model" (tied to the tet model by proximity)
+  ThinAttachment attach = ThinAttachment::kNone;
   double attach_distance_mm = 1.0;  // >= 0, mm: shell vertices this close to the model surface
   Eigen::Vector3d color = Eigen::Vector3d(1.0, 1.0, 0.0);  // RGB, each in [0, 1]
   double opacity = 1.0;                                    // in [0, 1]

@@ -461,7 +461,7 @@ std::string Pad3(int k) {
 }
 
 nlohmann::json OptionsJson(const CutOptions& o) {
-  return {{"method", o.method == RemeshMethod::kFlips ? "flips" : "bielser"},
+  return {{"method", RemeshMethodName(o.method)},
           {"snap_epsilon", o.snap_epsilon},
           {"on_surface_tolerance", o.on_surface_tolerance},
           {"min_barycentric", o.min_barycentric},
@@ -636,10 +636,8 @@ std::vector<Violation> ReplayCase(const std::string& dir) {
       cut.surface.vertices = s.vertices;
       cut.surface.triangles = s.faces;
       const auto& o = c.at("options");
-      const std::string method = o.at("method").get<std::string>();
-      ARREG_CHECK_INPUT(method == "flips" || method == "bielser", json_path,
-                        "cuts[].options.method", "must be flips or bielser");
-      cut.options.method = method == "flips" ? RemeshMethod::kFlips : RemeshMethod::kBielser;
+      cut.options.method =
+          ParseRemeshMethod(o.at("method").get<std::string>(), json_path, "cuts[].options.method");
       cut.options.snap_epsilon = o.at("snap_epsilon").get<double>();
       cut.options.on_surface_tolerance = o.at("on_surface_tolerance").get<double>();
       cut.options.min_barycentric = o.at("min_barycentric").get<double>();

@@ -14,6 +14,10 @@
 
 namespace arreg::cutting {
 
+namespace cut_internal {
+class CutOperation;  // the steps of one Cut() (tet_cut_operation.h)
+}  // namespace cut_internal
+
 enum class RemeshMethod {
   // 1-4 split of crossed tetrahedra, 2-3 flips over crossed faces, general
   // flip (edge removal) over crossed edges, 1-3 split of boundary faces and
@@ -24,6 +28,11 @@ enum class RemeshMethod {
   // crossed ones around a vertex inside them (see docs/cutting.md).
   kBielser,
 };
+// The spelling in scene files and records: "flips", "bielser".
+const char* RemeshMethodName(RemeshMethod method);
+// Inverse of RemeshMethodName; throws arreg::Error naming `file` and `field` for any other name.
+RemeshMethod ParseRemeshMethod(const std::string& name, const std::string& file,
+                               const std::string& field);
 
 struct CutOptions {
   RemeshMethod method = RemeshMethod::kFlips;
@@ -161,14 +170,14 @@ class CuttableMesh {
   TetMesh CurrentMesh() const;
 
  private:
-  friend class CutEvent;
+  friend class cut_internal::CutOperation;
   void Init(const TetMesh& rest_mesh, const RowMatX3d& current, const RowMatX3d& velocities);
   bool BoundaryManifoldAround(const std::vector<int>& vertices) const;
 
   std::vector<Eigen::Vector3d> rest_, current_, velocity_;
   std::vector<std::array<int, 4>> tets_;
   std::vector<std::vector<int>> vertex_tets_;
-  std::unordered_set<std::uint64_t> unsewn_;  // face keys (see FaceKey in the .cc)
+  std::unordered_set<std::uint64_t> unsewn_;  // face keys (see FaceKey in tet_cut_operation.h)
   std::unordered_set<int> front_vertices_;    // 1-4 vertices of partial cuts, not on S
   double mean_edge_length_ = 0;
 };

@@ -122,12 +122,12 @@ TEST(CutHandler, KeepConnectedCutsShallowerInsteadOfSplitting) {
     CuttingStageOptions options;
     EXPECT_TRUE(options.keep_connected);
     options.keep_connected = keep;
-    options.cut_configuration = configuration;
+    options.cut_configuration = ParseCutConfiguration(configuration, "test");
     CutHandler handler(options, model.state);
     model.state.mutable_positions().rowwise() += moved.transpose();
     const CutEvent ev = handler.Apply(0, line, rest_line, eye, model.Targets());
-    EXPECT_EQ(ev.configuration, configuration);
-    ASSERT_EQ(ev.status, "cut") << ev.message;
+    EXPECT_EQ(ev.configuration, ParseCutConfiguration(configuration, "test"));
+    ASSERT_EQ(ev.status, CutEventStatus::kCut) << ev.message;
     const TetMesh rest = model.state.RestMesh();
     EXPECT_EQ(CheckedPieces(rest, v0), keep ? 1 : 2);
     if (keep) {
@@ -184,7 +184,7 @@ TEST(CutHandler, SplitsTheModelForeseesTheRejectionOfKeepConnected) {
     EXPECT_EQ(handler.mesh().num_tetrahedra(), mesh.num_tetrahedra());
     EXPECT_EQ(handler.mesh().num_vertices(), mesh.num_vertices());
     const CutEvent ev = handler.Apply(0, l, l, eye, model.Targets());
-    EXPECT_EQ(ev.status, c.splits ? "rejected" : "cut") << ev.message;
+    EXPECT_EQ(ev.status, c.splits ? CutEventStatus::kRejected : CutEventStatus::kCut) << ev.message;
     // Apply takes the cut SplitsTheModel planned: the same as a handler that was not asked.
     Model fresh(mesh, c.height_mm);
     CutHandler unasked(options, fresh.state);
@@ -206,7 +206,7 @@ TEST(CutHandler, SplitsTheModelForeseesTheRejectionOfKeepConnected) {
   EXPECT_FALSE(asked.SplitsTheModel(partial, partial, eye, a.state));
   const CutEvent ea = asked.Apply(0, across, across, eye, a.Targets());
   const CutEvent eb = unasked.Apply(0, across, across, eye, b.Targets());
-  ASSERT_EQ(ea.status, "cut");
+  ASSERT_EQ(ea.status, CutEventStatus::kCut);
   EXPECT_EQ(ea.new_tetrahedra, eb.new_tetrahedra);
   EXPECT_EQ(ea.depth_fraction, eb.depth_fraction);
   EXPECT_TRUE(a.state.rest_positions() == b.state.rest_positions());
@@ -228,13 +228,14 @@ TEST(CutHandler, ASplittingEventIsNotCutInTheCurrentConfigurationInstead) {
   const std::vector<Eigen::Vector3d> first = {Eigen::Vector3d(-5, 20.3, 4),
                                               Eigen::Vector3d(20, 20.3, 4)};
   const CutEvent a = handler.Apply(0, first, first, eye, model.Targets());
-  ASSERT_EQ(a.status, "cut") << a.message;
+  ASSERT_EQ(a.status, CutEventStatus::kCut) << a.message;
   std::vector<Eigen::Vector3d> rest = first, current = first;
   rest.push_back(Eigen::Vector3d(45, 20.3, 4));
   current.push_back(Eigen::Vector3d(45, 21.8, 4));
   EXPECT_TRUE(handler.SplitsTheModel(current, rest, eye, model.state));
   const CutEvent b = handler.Apply(1, current, rest, eye, model.Targets());
-  EXPECT_EQ(b.status, "rejected") << b.configuration;
+  EXPECT_EQ(b.status, CutEventStatus::kRejected)
+      << (b.configuration ? CutConfigurationName(*b.configuration) : "");
   EXPECT_EQ(CheckedPieces(model.state.RestMesh(), v0), 1);
 }
 
@@ -261,7 +262,7 @@ TEST(CutHandler, FirstEventDepthForeseesThePolylineReachingTheOutline) {
     Model model(block);
     CutHandler handler(CuttingStageOptions(), model.state);
     const CutEvent ev = handler.Apply(0, across, across, eye, model.Targets());
-    ASSERT_EQ(ev.status, "cut") << ev.message;
+    ASSERT_EQ(ev.status, CutEventStatus::kCut) << ev.message;
     across_depth = ev.depth_fraction;
     ASSERT_LT(across_depth, 1.0);
   }
@@ -272,10 +273,10 @@ TEST(CutHandler, FirstEventDepthForeseesThePolylineReachingTheOutline) {
     options.foresight_mm = foresight_mm;
     CutHandler handler(options, model.state);
     const CutEvent a = handler.Apply(0, first, first, eye, model.Targets());
-    ASSERT_EQ(a.status, "cut") << a.message;
+    ASSERT_EQ(a.status, CutEventStatus::kCut) << a.message;
     EXPECT_EQ(a.depth_fraction, foresight_mm > 0 ? across_depth : 1.0);
     const CutEvent b = handler.Apply(1, second, second, eye, model.Targets());
-    ASSERT_EQ(b.status, "cut") << b.message;
+    ASSERT_EQ(b.status, CutEventStatus::kCut) << b.message;
     EXPECT_EQ(b.depth_fraction, foresight_mm > 0 ? across_depth : 1.0);
     EXPECT_EQ(CheckedPieces(model.state.RestMesh(), v0), 1);
   }
@@ -299,7 +300,7 @@ TEST(CutHandler, ProgressiveCutOnAMovingModel) {
     const double v0 = cutting::CheckMeshInvariants(block).total_volume;
     CuttingStageOptions options;
     options.keep_connected = false;
-    options.cut_configuration = configuration;
+    options.cut_configuration = ParseCutConfiguration(configuration, "test");
     CutHandler handler(options, model.state);
     const Eigen::Vector3d eye(20, 20, 200);
     std::vector<Eigen::Vector3d> cut_points, rest_points;  // this frame's, frame 0's
@@ -328,9 +329,9 @@ TEST(CutHandler, ProgressiveCutOnAMovingModel) {
       const std::vector<Eigen::Vector3d> extended = extend(cut_points);
       const int before = model.state.num_vertices();
       const CutEvent ev = handler.Apply(event, extended, extend(rest_points), eye, model.Targets());
-      ASSERT_TRUE(ev.status == "cut" || ev.status == "no-crossing")
-          << "event " << event << ": " << ev.status << " " << ev.message;
-      if (ev.status == "cut") ++applied;
+      ASSERT_TRUE(ev.status == CutEventStatus::kCut || ev.status == CutEventStatus::kNoCrossing)
+          << "event " << event << ": " << CutEventStatusName(ev.status) << " " << ev.message;
+      if (ev.status == CutEventStatus::kCut) ++applied;
       EXPECT_LT(model.state.num_vertices() - before, 120) << "event " << event;
       ASSERT_EQ(model.state.num_vertices(), handler.mesh().num_vertices());
       ASSERT_EQ(model.state.num_tetrahedra(), handler.mesh().num_tetrahedra());
@@ -391,8 +392,8 @@ TEST(CutHandler, InternalStructureIsSplitAndCappedAlongTheCrack) {
       std::vector<Eigen::Vector3d> line = points;
       line.push_back(line.back() + 7.0 * (line.back() - line[line.size() - 2]).normalized());
       const CutEvent ev = handler.Apply(event, line, line, Eigen::Vector3d(20, 20, 200), targets);
-      ASSERT_TRUE(ev.status == "cut" || ev.status == "no-crossing")
-          << "event " << event << ": " << ev.status << " " << ev.message;
+      ASSERT_TRUE(ev.status == CutEventStatus::kCut || ev.status == CutEventStatus::kNoCrossing)
+          << "event " << event << ": " << CutEventStatusName(ev.status) << " " << ev.message;
       cap_faces += ev.internal_cap_faces;
       removed += ev.internal_triangles_removed;
       SurfaceMesh at_rest = model.internal[0];
@@ -454,7 +455,7 @@ TEST(CutHandler, RefusedSplitWritesItsInputs) {
   CutHandler handler(options, model.state);
   const std::vector<Eigen::Vector3d> line = {{-4, 20.3, 20}, {20, 20.3, 20}};
   const CutEvent ev = handler.Apply(7, line, line, Eigen::Vector3d(20, 20, 200), targets);
-  ASSERT_EQ(ev.status, "cut") << ev.message;
+  ASSERT_EQ(ev.status, CutEventStatus::kCut) << ev.message;
   EXPECT_GT(ev.internal_triangles_removed, 0);
   EXPECT_EQ(ev.internal_cap_faces, 0);
   const std::string path = options.refused_split_dir + "/000007_split_0_";
@@ -492,7 +493,7 @@ TEST(CutHandler, RestConfigurationContinuesTheCrackAcrossAShearingModel) {
     Model model(block);
     CuttingStageOptions options;
     options.keep_connected = false;
-    options.cut_configuration = configuration;
+    options.cut_configuration = ParseCutConfiguration(configuration, "test");
     CutHandler handler(options, model.state);
     std::vector<Eigen::Vector3d> current_points, rest_points;
     for (int event = 0; event < 7; ++event) {
@@ -509,10 +510,10 @@ TEST(CutHandler, RestConfigurationContinuesTheCrackAcrossAShearingModel) {
       for (const Eigen::Vector3d& p : rest_points) current_points.push_back(deform(p));
       if (rest_points.size() < 2) continue;
       const CutEvent ev = handler.Apply(event, current_points, rest_points, eye, model.Targets());
-      ASSERT_TRUE(ev.status == "cut" || ev.status == "no-crossing")
-          << "event " << event << ": " << ev.status << " " << ev.message;
-      if (ev.status == "cut") {
-        EXPECT_EQ(ev.configuration, configuration);
+      ASSERT_TRUE(ev.status == CutEventStatus::kCut || ev.status == CutEventStatus::kNoCrossing)
+          << "event " << event << ": " << CutEventStatusName(ev.status) << " " << ev.message;
+      if (ev.status == CutEventStatus::kCut) {
+        EXPECT_EQ(ev.configuration, ParseCutConfiguration(configuration, "test"));
       }
       const cutting::MeshInvariants inv = cutting::CheckMeshInvariants(model.state.RestMesh());
       ASSERT_TRUE(inv.ok()) << "event " << event << ": " << inv.ToString();
@@ -540,10 +541,10 @@ TEST(CutHandler, CrackEndsNearTheOutlineAreCarriedAcrossIt) {
     Model model(block);
     CuttingStageOptions options;
     options.keep_connected = false;
-    options.cut_configuration = c == 0 ? "rest" : "current";
+    options.cut_configuration = c == 0 ? CutConfiguration::kRest : CutConfiguration::kCurrent;
     CutHandler handler(options, model.state);
     const CutEvent ev = handler.Apply(0, line, line, eye, model.Targets());
-    ASSERT_EQ(ev.status, "cut") << ev.message;
+    ASSERT_EQ(ev.status, CutEventStatus::kCut) << ev.message;
     ConnectedComponents(model.state.RestMesh(), Adjacency::kVertex, &pieces[c]);
     // The event records the line S was extruded from, in rest coordinates: in the rest
     // configuration with its end carried across the outline at x = 40, in the current one the
@@ -584,13 +585,13 @@ TEST(CutHandler, DebrisBetweenTwoCracksIsWeldedToTheBody) {
   const std::vector<Eigen::Vector3d> first = {
       {44.6, 114.6, 8}, {48.1, 95.4, 8}, {51.5, 77.5, 8}, {55.0, 59.3, 8}};
   const CutEvent e1 = handler.Apply(0, first, first, eye, model.Targets());
-  ASSERT_EQ(e1.status, "cut") << e1.message;
+  ASSERT_EQ(e1.status, CutEventStatus::kCut) << e1.message;
   EXPECT_EQ(e1.welded_vertices, 0);
   const std::vector<Eigen::Vector3d> second = {
       {44.6, 114.6, 8}, {48.1, 95.4, 8}, {51.5, 77.5, 8}, {48.3, 61.0, 8}, {46.5, 52.1, 8}};
   const CutEvent e2 = handler.Apply(1, second, second, eye, model.Targets());
-  ASSERT_EQ(e2.status, "cut") << e2.message;
-  EXPECT_EQ(e2.configuration, "rest");
+  ASSERT_EQ(e2.status, CutEventStatus::kCut) << e2.message;
+  EXPECT_EQ(e2.configuration, CutConfiguration::kRest);
   EXPECT_GT(e2.welded_vertices, 0);
   EXPECT_EQ(handler.num_welded_vertices(), e2.welded_vertices);
   const cutting::MeshInvariants inv = cutting::CheckMeshInvariants(model.state.RestMesh());

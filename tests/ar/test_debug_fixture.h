@@ -192,7 +192,7 @@ inline std::vector<cutting::DetectionResult> RecordRun(const std::string& run_di
     if (!detection.new_cut_points.empty()) {
       pipeline::CutEvent e;
       e.frame = t;
-      e.status = "no-crossing";
+      e.status = pipeline::CutEventStatus::kNoCrossing;
       e.polyline_points = static_cast<int>(detection.polyline_mm.size());
       events.push_back(e);
     }

@@ -723,9 +723,9 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   scene.cutting = {{"confirm_starts_with_model_measure", "no"}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
   // where S is cut.
-  EXPECT_EQ(o.cutting.cut_configuration, "rest");
+  EXPECT_EQ(o.cutting.cut_configuration, CutConfiguration::kRest);
   scene.cutting = {{"cut_configuration", "current"}};
-  EXPECT_EQ(ReadPipelineOptions(scene).cutting.cut_configuration, "current");
+  EXPECT_EQ(ReadPipelineOptions(scene).cutting.cut_configuration, CutConfiguration::kCurrent);
   scene.cutting = {{"cut_configuration", "deformed"}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
   // the growth probe.

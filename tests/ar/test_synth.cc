@@ -397,7 +397,7 @@ TEST(Generator, MembraneCutWritesAShellSceneAndTheTrueMidSurface) {
   EXPECT_TRUE(scene.model_mesh_path.empty());
   ASSERT_EQ(scene.thin_structures.size(), 1u);
   const ThinStructure& shell = scene.thin_structures[0];
-  EXPECT_EQ(shell.type, "shell");
+  EXPECT_EQ(shell.type, ThinStructureType::kShell);
   EXPECT_GE(shell.thickness_mm, 1.0);
   EXPECT_LE(shell.thickness_mm, 2.0);
   const SurfaceMesh model = ReadSurfaceMesh(shell.mesh_path);
@@ -476,8 +476,8 @@ TEST(Generator, VesselCutSeversTheBranchItCrosses) {
   EXPECT_FALSE(scene.model_mesh_path.empty());
   ASSERT_EQ(scene.thin_structures.size(), 1u);
   const ThinStructure& vessel = scene.thin_structures[0];
-  EXPECT_EQ(vessel.type, "vessel");
-  EXPECT_EQ(vessel.attach, "model");
+  EXPECT_EQ(vessel.type, ThinStructureType::kVessel);
+  EXPECT_EQ(vessel.attach, ThinAttachment::kModel);
   EXPECT_GT(vessel.radius_mm, 0);
   std::istringstream centreline(Slurp(vessel.centreline_path));
   int polylines = 0;

@@ -39,7 +39,7 @@ SurfaceMesh Sheet(double size_mm, int n) {
 LoadedThin ShellOf(const SurfaceMesh& m) {
   LoadedThin l;
   l.spec.name = "membrane";
-  l.spec.type = "shell";
+  l.spec.type = ThinStructureType::kShell;
   l.spec.thickness_mm = 0.5;
   l.spec.material.youngs_modulus_pa = 20000;
   l.spec.material.poisson_ratio = 0.3;
@@ -108,7 +108,7 @@ Scene VesselScene(const std::string& dir, const std::string& name) {
   scene.path = dir + "/scene.json";
   ThinStructure t;
   t.name = "vessel";
-  t.type = "vessel";
+  t.type = ThinStructureType::kVessel;
   t.centreline_path = dir + "/" + name;
   t.radius_mm = 1.5;
   scene.thin_structures = {t};
@@ -141,7 +141,7 @@ TEST(ThinModel, LoadingRejectsLoopsAndBadFixedVertices) {
   WriteSurfaceMesh(dir + "/sheet.obj", Sheet(10, 2));
   ThinStructure shell;
   shell.name = "s";
-  shell.type = "shell";
+  shell.type = ThinStructureType::kShell;
   shell.mesh_path = dir + "/sheet.obj";
   shell.thickness_mm = 0.5;
   shell.fixed_vertices = {9};  // 3 x 3 vertices
@@ -356,7 +356,7 @@ TEST(ThinModel, ShellTiedToTheOrganFollowsIt) {
   mechanics::MechanicalState body(cube, material);
   mechanics::SpringEnergy springs;
   LoadedThin shell = ShellOf(Sheet(16, 4));  // on the top face z = 0, inside the cube's outline
-  shell.spec.attach = "model";
+  shell.spec.attach = ThinAttachment::kModel;
   shell.spec.attach_distance_mm = 0.5;
   ThinSystem thin({shell}, Scene(), &body, &springs, StepOptions());
   const Eigen::Vector3d shift(0, 0, 4);

@@ -330,7 +330,7 @@ TEST(Scene, ThinStructuresParse) {
   ASSERT_EQ(s.thin_structures.size(), 2u);
   const ThinStructure& shell = s.thin_structures[0];
   EXPECT_EQ(shell.name, "membrane");
-  EXPECT_EQ(shell.type, "shell");
+  EXPECT_EQ(shell.type, ThinStructureType::kShell);
   EXPECT_EQ(shell.mesh_path, fs::weakly_canonical(f.dir + "/meshes/membrane.obj").string());
   EXPECT_EQ(shell.visual_mesh_path,
             fs::weakly_canonical(f.dir + "/meshes/membrane_fine.obj").string());
@@ -340,17 +340,17 @@ TEST(Scene, ThinStructuresParse) {
   EXPECT_EQ(shell.material.youngs_modulus_pa, 20000);
   EXPECT_EQ(shell.material.poisson_ratio, 0.49);
   EXPECT_EQ(shell.fixed_vertices, (std::vector<int>{0, 7}));
-  EXPECT_EQ(shell.attach, "model");
+  EXPECT_EQ(shell.attach, ThinAttachment::kModel);
   EXPECT_EQ(shell.attach_distance_mm, 2.0);
   EXPECT_EQ(shell.color, Eigen::Vector3d(0.9, 0.6, 0.5));
   EXPECT_EQ(shell.opacity, 0.7);
   const ThinStructure& vessel = s.thin_structures[1];
-  EXPECT_EQ(vessel.type, "vessel");
+  EXPECT_EQ(vessel.type, ThinStructureType::kVessel);
   EXPECT_EQ(vessel.centreline_path, fs::weakly_canonical(f.dir + "/meshes/artery.obj").string());
   EXPECT_EQ(vessel.radius_mm, 1.5);
   EXPECT_EQ(vessel.material.youngs_modulus_pa, 3000);  // the top-level material
   EXPECT_TRUE(vessel.fixed_vertices.empty());
-  EXPECT_EQ(vessel.attach, "none");
+  EXPECT_EQ(vessel.attach, ThinAttachment::kNone);
   EXPECT_EQ(vessel.attach_distance_mm, 1.0);
   EXPECT_EQ(vessel.opacity, 1.0);
 }

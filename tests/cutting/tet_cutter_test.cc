@@ -6,6 +6,7 @@
 #include <cmath>
 #include <random>
 
+#include "core/error.h"
 #include "core/mesh_generators.h"
 #include "core/mesh_io.h"
 #include "core/mesh_ops.h"
@@ -15,6 +16,20 @@
 
 namespace arreg::cutting {
 namespace {
+
+// The method names are the scene and record spelling; any other name is refused naming the field.
+TEST(RemeshMethodTest, NamesRoundTripAndUnknownNamesAreRefused) {
+  for (RemeshMethod method : {RemeshMethod::kFlips, RemeshMethod::kBielser})
+    EXPECT_EQ(ParseRemeshMethod(RemeshMethodName(method), "", "method"), method);
+  EXPECT_STREQ(RemeshMethodName(RemeshMethod::kBielser), "bielser");
+  try {
+    ParseRemeshMethod("subdivide", "cuts.json", "cuts[].options.method");
+    FAIL() << "an unknown method was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.file(), "cuts.json");
+    EXPECT_EQ(e.where(), "cuts[].options.method");
+  }
+}
 
 TetMesh Box() {
   return MakeBoxTetMesh(Eigen::Vector3d(30, 20, 10), Eigen::Vector3i(3, 2, 2), BoxTetSplit::kSix);

@@ -170,8 +170,7 @@ CutHandler::Pieces CutHandler::FindPieces(const TetMesh& rest) {
 cutting::CutSummary CutHandler::CutWithRetry(const SurfaceMesh& s, cutting::CutChange* change) {
   const cutting::CutSurface cs{s.vertices, s.faces};
   cutting::CutOptions co;
-  co.method = options_.method == "bielser" ? cutting::RemeshMethod::kBielser
-                                           : cutting::RemeshMethod::kFlips;
+  co.method = options_.method;
   co.snap_epsilon = options_.snap_epsilon;
   co.on_surface_tolerance = options_.on_surface_tolerance;
   cutting::CutSummary cut = mesh_->Cut(cs, co, change);
@@ -217,7 +216,7 @@ CutHandler::Plan CutHandler::PlanCut(const std::vector<Eigen::Vector3d>& polylin
   double& depth = plan.depth;
   bool& in_rest = plan.in_rest;
   std::vector<bool> configurations = {false};
-  if (options_.cut_configuration == "rest") configurations = {true, false};
+  if (options_.cut_configuration == CutConfiguration::kRest) configurations = {true, false};
   // The first event of a cut foresees its polyline reaching the outline where an end is
   // within options_.foresight_mm of it (see CuttingStageOptions::foresight_mm).
   const bool foresight = options_.keep_connected && options_.foresight_mm > 0;
@@ -374,10 +373,10 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
     const cutting::CutSurface cs{s.vertices, s.faces};
     ev.message = cut.message;
     if (cut.status == cutting::CutStatus::kCut) {
-      ev.status = "cut";
+      ev.status = CutEventStatus::kCut;
       ev.depth_fraction = depth;
       if (in_rest && applied_points_.empty()) depth_of_cut_ = depth;
-      ev.configuration = in_rest ? "rest" : "current";
+      ev.configuration = in_rest ? CutConfiguration::kRest : CutConfiguration::kCurrent;
       ev.polyline_rest_mm = plan.polyline_rest_mm;
       const int v_before = state.num_vertices(), t_before = state.num_tetrahedra();
       std::vector<int> new_elements;
@@ -426,7 +425,8 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
       ev.new_vertices = state.num_vertices() - v_before;
       ev.new_tetrahedra = state.num_tetrahedra() - t_before;
     } else {
-      ev.status = cut.status == cutting::CutStatus::kNoCrossing ? "no-crossing" : "rejected";
+      ev.status = cut.status == cutting::CutStatus::kNoCrossing ? CutEventStatus::kNoCrossing
+                                                                : CutEventStatus::kRejected;
     }
     if (cut_surface) {
       cutting::CutExtrusionOptions shown = cutting::CutExtrusionCovering(
@@ -435,7 +435,7 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
       *cut_surface = cutting::ExtrudeCutPolyline(polyline_mm, eye_mm, shown);
     }
   } catch (const Error& e) {
-    ev.status = "failed";
+    ev.status = CutEventStatus::kFailed;
     ev.message = e.what();
     ev.polyline_rest_mm.clear();
     ARREG_LOG_WARNING("run: frame ", frame, ": cut not applied: ", e.what());

@@ -5,10 +5,12 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "ar/lift/lifting.h"
+#include "ar/pipeline/pipeline_options.h"
 #include "core/mesh.h"
 #include "core/scene.h"
 #include "cutting/detection.h"
@@ -45,10 +47,32 @@ struct FeatureView {
   double spring_length_mm = 0.0;  // |anchor - target| (0 for inactive springs)
 };
 
+// What a topology event did.
+enum class CutEventStatus {
+  kCut,         // the model (or a thin structure) was cut
+  kNoCrossing,  // S crossed nothing: nothing changed
+  kRejected,    // the cut would have damaged the mesh: nothing changed (message says why)
+  kFailed,      // the cut or the mechanics after it failed (message says why)
+};
+// The spelling in frames.jsonl: "cut", "no-crossing", "rejected", "failed".
+inline const char* CutEventStatusName(CutEventStatus status) {
+  switch (status) {
+    case CutEventStatus::kCut:
+      return "cut";
+    case CutEventStatus::kNoCrossing:
+      return "no-crossing";
+    case CutEventStatus::kRejected:
+      return "rejected";
+    case CutEventStatus::kFailed:
+      return "failed";
+  }
+  return "?";
+}
+
 // A topology event of the cutting stage.
 struct CutEvent {
   int frame = 0;
-  std::string status;   // "cut", "no-crossing", "rejected", "failed"
+  CutEventStatus status = CutEventStatus::kNoCrossing;
   std::string message;  // why, for rejected/failed
   int polyline_points = 0;
   int new_tetrahedra = 0;              // #T after - #T before
@@ -60,15 +84,16 @@ struct CutEvent {
   // Depth of the applied S behind the polyline, as a fraction of the extent that covers the
   // model (below 1 when CuttingStageOptions::keep_connected cut again shallower); 0 if none.
   double depth_fraction = 0.0;
-  // Configuration S was built and cut in: "rest" or "current" (CuttingStageOptions::
-  // cut_configuration; "current" also when the rest one could not apply); "" if none.
-  std::string configuration;
+  // Configuration S was built and cut in (CuttingStageOptions::cut_configuration; kCurrent also
+  // when the rest one could not apply); none when nothing was cut. Written as "rest", "current"
+  // or "".
+  std::optional<CutConfiguration> configuration;
   // Vertices of debris (pieces below 0.5 % of the rest volume) welded to the nearest piece by
   // this event (CutHandler::FollowWelds).
   int welded_vertices = 0;
   // The polyline S was extruded from, in the rest (frame-0, world mm) configuration: in the
   // rest configuration the line that was cut (its ends carried across the outline), in the
-  // current one the frame-0 positions of the detector's points. Empty unless status is "cut".
+  // current one the frame-0 positions of the detector's points. Empty unless status is kCut.
   std::vector<Eigen::Vector3d> polyline_rest_mm;
   // Thin structures the same cut separated (written only for scenes with thin structures).
   bool thin = false;

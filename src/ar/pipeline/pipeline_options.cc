@@ -28,10 +28,22 @@ void MechanicsStageOptions::Check() const {
                     "must be finite");
   for (int v : fixed_vertices)
     ARREG_CHECK_INPUT(v >= 0, "", "mechanics.fixed_vertices", "indices must be >= 0, got ", v);
-  ARREG_CHECK_INPUT(
-      linear_solver == "cholmod-pcg" || linear_solver == "cholmod" || linear_solver == "cg", "",
-      "mechanics.linear_solver", "must be \"cholmod-pcg\", \"cholmod\" or \"cg\", got \"",
-      linear_solver, "\"");
+}
+
+const char* CutConfigurationName(CutConfiguration configuration) {
+  switch (configuration) {
+    case CutConfiguration::kRest:
+      return "rest";
+    case CutConfiguration::kCurrent:
+      return "current";
+  }
+  return "?";
+}
+
+CutConfiguration ParseCutConfiguration(const std::string& name, const std::string& field) {
+  if (name == "rest") return CutConfiguration::kRest;
+  if (name == "current") return CutConfiguration::kCurrent;
+  throw Error("", field, "must be \"rest\" or \"current\", got \"" + name + "\"");
 }
 
 void CuttingStageOptions::Check() const {
@@ -50,11 +62,6 @@ void CuttingStageOptions::Check() const {
                     "cutting.tracking_noise_px", "must be > 0, got ", tracking_noise_px);
   ARREG_CHECK_INPUT(std::isfinite(min_outlier_measure_px) && min_outlier_measure_px >= 0, "",
                     "cutting.min_outlier_measure_px", "must be >= 0, got ", min_outlier_measure_px);
-  ARREG_CHECK_INPUT(method == "flips" || method == "bielser", "", "cutting.method",
-                    "must be \"flips\" or \"bielser\", got \"", method, "\"");
-  ARREG_CHECK_INPUT(cut_configuration == "rest" || cut_configuration == "current", "",
-                    "cutting.cut_configuration", "must be \"rest\" or \"current\", got \"",
-                    cut_configuration, "\"");
 }
 
 void RenderStageOptions::Check() const {
@@ -209,7 +216,9 @@ void ReadMechanics(const Scene& scene, MechanicsStageOptions* o) {
   r.Optional("rayleigh_stiffness_s", &o->rayleigh_stiffness_s);
   r.Optional("gravity_mm_per_s2", &o->gravity_mm_per_s2);
   r.Optional("fixed_vertices", &o->fixed_vertices);
-  r.OptionalChoice("linear_solver", {"cholmod-pcg", "cholmod", "cg"}, &o->linear_solver);
+  std::string linear_solver = mechanics::LinearSolverTypeName(o->linear_solver);
+  r.OptionalChoice("linear_solver", {"cholmod-pcg", "cholmod", "cg"}, &linear_solver);
+  o->linear_solver = mechanics::ParseLinearSolverType(linear_solver);
   r.Optional("line_search", &o->line_search);
   r.Optional("output_spring_factor", &o->output_spring_factor);
   r.Finish();
@@ -260,14 +269,18 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("tracking_noise_px", &o->tracking_noise_px);
   r.Optional("spring_margin_mm", &o->spring_margin_mm);
   r.Optional("extrusion_margin_mm", &o->extrusion_margin_mm);
-  r.OptionalChoice("method", {"flips", "bielser"}, &o->method);
+  std::string method = cutting::RemeshMethodName(o->method);
+  r.OptionalChoice("method", {"flips", "bielser"}, &method);
+  o->method = cutting::ParseRemeshMethod(method, "", "cutting.method");
   r.Optional("snap_epsilon", &o->snap_epsilon);
   r.Optional("on_surface_tolerance", &o->on_surface_tolerance);
   r.Optional("keep_connected", &o->keep_connected);
   r.Optional("first_event_foresight", &o->first_event_foresight);
   r.Optional("min_outlier_measure_px", &o->min_outlier_measure_px);
   r.Optional("refuse_splitting_segments", &o->refuse_splitting_segments);
-  r.OptionalChoice("cut_configuration", {"rest", "current"}, &o->cut_configuration);
+  std::string configuration = CutConfigurationName(o->cut_configuration);
+  r.OptionalChoice("cut_configuration", {"rest", "current"}, &configuration);
+  o->cut_configuration = ParseCutConfiguration(configuration, "cutting.cut_configuration");
   r.Optional("internal_caps", &o->internal_caps);
   r.Finish();
 }
@@ -379,7 +392,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"rayleigh_stiffness_s", o.mechanics.rayleigh_stiffness_s},
       {"gravity_mm_per_s2", vec(o.mechanics.gravity_mm_per_s2)},
       {"fixed_vertices", o.mechanics.fixed_vertices},
-      {"linear_solver", o.mechanics.linear_solver},
+      {"linear_solver", mechanics::LinearSolverTypeName(o.mechanics.linear_solver)},
       {"line_search", o.mechanics.line_search},
       {"output_spring_factor", o.mechanics.output_spring_factor}};
   j["cutting"] = {
@@ -421,14 +434,14 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"tracking_noise_px", o.cutting.tracking_noise_px},
       {"spring_margin_mm", o.cutting.spring_margin_mm},
       {"extrusion_margin_mm", o.cutting.extrusion_margin_mm},
-      {"method", o.cutting.method},
+      {"method", cutting::RemeshMethodName(o.cutting.method)},
       {"snap_epsilon", o.cutting.snap_epsilon},
       {"on_surface_tolerance", o.cutting.on_surface_tolerance},
       {"keep_connected", o.cutting.keep_connected},
       {"first_event_foresight", o.cutting.first_event_foresight},
       {"min_outlier_measure_px", o.cutting.min_outlier_measure_px},
       {"refuse_splitting_segments", o.cutting.refuse_splitting_segments},
-      {"cut_configuration", o.cutting.cut_configuration},
+      {"cut_configuration", CutConfigurationName(o.cutting.cut_configuration)},
       {"internal_caps", o.cutting.internal_caps}};
   j["render"] = {{"enabled", o.render.enabled},
                  {"style", o.render.style == OverlayStyle::kTint ? "tint" : "contour"},

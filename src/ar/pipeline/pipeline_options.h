@@ -11,6 +11,8 @@
 #include "core/mesh.h"
 #include "core/scene.h"
 #include "cutting/detection.h"
+#include "cutting/tet_cutter.h"
+#include "mechanics/linear_solver.h"
 #include "mechanics/tet_element.h"
 #include "tracking/tracker.h"
 
@@ -51,10 +53,10 @@ struct MechanicsStageOptions {
   Eigen::Vector3d gravity_mm_per_s2 = Eigen::Vector3d::Zero();
   // Model vertices held at their frame-0 position (indices into the model mesh); default none.
   std::vector<int> fixed_vertices;
-  // "cholmod-pcg" (default: CG preconditioned by the CHOLMOD factor of an earlier
-  // frame's matrix, refactorised when CG slows down), "cholmod" (exact, refactorised
-  // every step) or "cg" (block-Jacobi preconditioned).
-  std::string linear_solver = "cholmod-pcg";
+  // kCholmodPcg (default, "cholmod-pcg": CG preconditioned by the CHOLMOD factor of an earlier
+  // frame's matrix, refactorised when CG slows down), kCholmod ("cholmod": exact, refactorised
+  // every step) or kConjugateGradient ("cg": block-Jacobi preconditioned).
+  mechanics::LinearSolverType linear_solver = mechanics::LinearSolverType::kCholmodPcg;
   // Line search on the incremental potential along each Newton increment of the frame's step
   // (mechanics::ImplicitEulerOptions::line_search; docs/mechanics.md, "Line search"): without
   // it the free lips of a cut, stretched band swing in depth from frame to frame. The output
@@ -69,6 +71,13 @@ struct MechanicsStageOptions {
   void Check() const;
 };
 
+// Where the cutting stage builds and cuts S (CuttingStageOptions::cut_configuration).
+enum class CutConfiguration { kRest, kCurrent };
+// The spelling in scene files and run records: "rest", "current".
+const char* CutConfigurationName(CutConfiguration configuration);
+// Inverse of CutConfigurationName; throws arreg::Error naming `field` for any other name.
+CutConfiguration ParseCutConfiguration(const std::string& name, const std::string& field);
+
 // Cutting stage (thesis 7.5): detection every frame, extrusion of the polyline into S,
 // remeshing, mechanics follow, re-embedding and spring removal.
 struct CuttingStageOptions {
@@ -78,8 +87,8 @@ struct CuttingStageOptions {
   double spring_margin_mm = 4.0;
   // [mm] S extends this far beyond the model's depth range along the rays. Default 10.
   double extrusion_margin_mm = 10.0;
-  // Remeshing method: "flips" (default, thesis 5.1) or "bielser".
-  std::string method = "flips";
+  // Remeshing method: kFlips (default, "flips", thesis 5.1) or kBielser ("bielser").
+  cutting::RemeshMethod method = cutting::RemeshMethod::kFlips;
   // Snapping threshold eps (unitless, >= 0): a vertex of a crossed edge moves onto S when its
   // distance to S is below eps x the mean rest edge length (thesis 5.1.3; its figures use
   // 0 to 0.3). Default 0.1.
@@ -136,12 +145,13 @@ struct CuttingStageOptions {
   // without a cut (docs/detection.md, "Segments that would split the model"). false adds every
   // segment the growth rules allow. Default true.
   bool refuse_splitting_segments = true;
-  // Where S is built and cut: "rest" (default) extrudes the polyline of the cut points' frame-0
-  // positions along the frame-0 rays and cuts the rest configuration with the whole polyline
-  // at every event, so each event continues the crack exactly where the last one left it;
-  // "current" extrudes this frame's polyline and cuts only its new segments (the thesis; the
-  // strips of successive frames meet along lines that stay sewn, see docs/cutting.md).
-  std::string cut_configuration = "rest";
+  // Where S is built and cut: kRest (default, "rest") extrudes the polyline of the cut points'
+  // frame-0 positions along the frame-0 rays and cuts the rest configuration with the whole
+  // polyline at every event, so each event continues the crack exactly where the last one left it;
+  // kCurrent ("current") extrudes this frame's polyline and cuts only its new segments (the
+  // thesis; the strips of successive frames meet along lines that stay sewn, see
+  // docs/cutting.md).
+  CutConfiguration cut_configuration = CutConfiguration::kRest;
   // Internal structures S cuts: true (default) splits each surface along the model's crack and,
   // when it is closed, closes each side again with a cap on the crack (cutting::
   // SplitAlongCrack), so a cut tumour is two closed pieces that follow their sides; false

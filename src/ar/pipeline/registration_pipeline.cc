@@ -52,7 +52,7 @@ nlohmann::json CutEvent::ToJson() const {
   nlohmann::json polyline = nlohmann::json::array();
   for (const Eigen::Vector3d& p : polyline_rest_mm) polyline.push_back({p.x(), p.y(), p.z()});
   nlohmann::json j = {{"frame", frame},
-                      {"status", status},
+                      {"status", CutEventStatusName(status)},
                       {"message", message},
                       {"polyline_points", polyline_points},
                       {"new_tetrahedra", new_tetrahedra},
@@ -61,7 +61,7 @@ nlohmann::json CutEvent::ToJson() const {
                       {"internal_triangles_removed", internal_triangles_removed},
                       {"internal_cap_faces", internal_cap_faces},
                       {"depth_fraction", depth_fraction},
-                      {"configuration", configuration},
+                      {"configuration", configuration ? CutConfigurationName(*configuration) : ""},
                       {"welded_vertices", welded_vertices},
                       {"polyline_rest_mm", polyline}};
   if (thin) {
@@ -475,10 +475,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   io.rayleigh_stiffness_beta = o.mechanics.rayleigh_stiffness_s >= 0
                                    ? o.mechanics.rayleigh_stiffness_s
                                    : scene.material.rayleigh_stiffness_s;
-  io.linear_solver.type =
-      o.mechanics.linear_solver == "cg"        ? mechanics::LinearSolverType::kConjugateGradient
-      : o.mechanics.linear_solver == "cholmod" ? mechanics::LinearSolverType::kCholmod
-                                               : mechanics::LinearSolverType::kCholmodPcg;
+  io.linear_solver.type = o.mechanics.linear_solver;
   io.line_search = o.mechanics.line_search;
   mechanics::ImplicitEulerIntegrator integrator(io);
   // The run's step options for a generalised system (thin structures, degree 2 and 3).
@@ -889,12 +886,12 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
         const std::vector<Eigen::Vector3d> rest_polyline = detector->ExtendedPolyline(true);
         CutEvent ev;
         ev.frame = frame;
-        ev.status = "no-crossing";
+        ev.status = CutEventStatus::kNoCrossing;
         ev.polyline_points = static_cast<int>(detection.extended_polyline_mm.size());
         if (cut_handler)
           ev = cut_handler->Apply(frame, detection.extended_polyline_mm, rest_polyline,
                                   camera.CenterInWorld(), cut_targets, &s);
-        if (thin && ev.status != "failed") {
+        if (thin && ev.status != CutEventStatus::kFailed) {
           // The shells along the rest polyline, seen from the camera; the vessels by the plane
           // of the current polyline and the viewing direction.
           Eigen::Vector3d centre = Eigen::Vector3d::Zero();
@@ -907,18 +904,19 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
           ev.thin_shell_nodes_added = te.shell_nodes_added;
           ev.thin_vessels_cut = te.vessels_cut;
           ev.thin_vessel_frames_added = te.vessel_frames_added;
-          if (te.shells_cut + te.vessels_cut > 0 && ev.status != "cut") {
-            ev.status = "cut";
+          if (te.shells_cut + te.vessels_cut > 0 && ev.status != CutEventStatus::kCut) {
+            ev.status = CutEventStatus::kCut;
             ev.message.clear();
             ev.polyline_rest_mm = rest_polyline;
           }
         }
-        if (ev.status == "cut") {
+        if (ev.status == CutEventStatus::kCut) {
           if (has_tets) surface = ExtractBoundary(state.CurrentMesh());
           update_anchors(&anchors);
           ++summary.cuts_applied;
         }
-        if (ev.status != "failed" && (cut_handler || s.num_faces() > 0)) cut_surface = std::move(s);
+        if (ev.status != CutEventStatus::kFailed && (cut_handler || s.num_faces() > 0))
+          cut_surface = std::move(s);
         events.push_back(ev);
         ++summary.cut_events;
       }

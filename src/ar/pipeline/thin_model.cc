@@ -140,7 +140,7 @@ std::vector<LoadedThin> LoadThinStructures(const Scene& scene) {
     LoadedThin l;
     l.spec = t;
     int num_vertices = 0;
-    if (t.type == "shell") {
+    if (t.type == ThinStructureType::kShell) {
       const SurfaceMesh mesh = ReadSurfaceMesh(t.mesh_path);
       l.vertices = PlaceInWorld(mesh.vertices, scene);
       l.triangles = mesh.faces;
@@ -574,7 +574,7 @@ ThinSystem::ThinSystem(const std::vector<LoadedThin>& thin, const Scene& scene,
     names_.push_back(t.name);
     colors_.push_back(t.color);
     opacities_.push_back(t.opacity);
-    if (t.type == "shell") {
+    if (t.type == ThinStructureType::kShell) {
       Shell s;
       s.structure = static_cast<int>(i);
       s.material.youngs_modulus_kpa = t.material.youngs_modulus_pa * 1e-3;
@@ -619,7 +619,7 @@ ThinSystem::ThinSystem(const std::vector<LoadedThin>& thin, const Scene& scene,
         lift_triangles_.row(old_rows + f) = l.triangles.row(f).array() + first;
         lift_owner_.emplace_back(static_cast<int>(shells_.size()), f);
       }
-      if (t.attach == "model" && has_tets) {
+      if (t.attach == ThinAttachment::kModel && has_tets) {
         const mechanics::EmbeddedPoints e = embed(l.vertices);
         const double k =
             options.tie_stiffness_factor * t.material.youngs_modulus_pa * t.thickness_mm * 1e-3;
@@ -678,7 +678,7 @@ ThinSystem::ThinSystem(const std::vector<LoadedThin>& thin, const Scene& scene,
         state_.SetFixedTranslation(best, true);
         state_.SetFixedRotation(best, true);
       }
-      if (t.attach == "model" && has_tets) {
+      if (t.attach == ThinAttachment::kModel && has_tets) {
         std::vector<int> nodes;
         for (const mechanics::Vessel& b : part.branches)
           nodes.insert(nodes.end(), b.frame_nodes.begin(), b.frame_nodes.end());

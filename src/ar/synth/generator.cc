@@ -763,7 +763,7 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
     WriteSurfaceMesh(dir + "/membrane.obj", s.membrane->model_mid_surface);
     ThinStructure shell;
     shell.name = s.membrane->name;
-    shell.type = "shell";
+    shell.type = ThinStructureType::kShell;
     shell.mesh_path = dir + "/membrane.obj";
     shell.thickness_mm = s.membrane->thickness_mm;
     shell.material = scene.material;
@@ -779,11 +779,11 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
     WriteCentreline(dir + "/vessel.obj", *s.vessel, s.vessel->model_spacing_mm);
     ThinStructure vessel;
     vessel.name = s.vessel->name;
-    vessel.type = "vessel";
+    vessel.type = ThinStructureType::kVessel;
     vessel.centreline_path = dir + "/vessel.obj";
     vessel.radius_mm = s.vessel->radius_mm;
     vessel.material = scene.material;
-    vessel.attach = "model";
+    vessel.attach = ThinAttachment::kModel;
     vessel.color = Eigen::Vector3d(0.9, 0.15, 0.2);
     scene.thin_structures.push_back(vessel);
     thin_meta.push_back({{"name", vessel.name},
