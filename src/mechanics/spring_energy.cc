@@ -154,4 +154,43 @@ void PointForceEnergy::AddGradient(const MechanicalState& state, const RowMatX3d
   }
 }
 
+void VertexTetherEnergy::Add(int vertex, const Eigen::Vector3d& target_mm,
+                             double stiffness_n_per_m) {
+  ARREG_CHECK_INPUT(vertex >= 0, "", "tether vertex", "must be >= 0, got ", vertex);
+  ARREG_CHECK_INPUT(std::isfinite(stiffness_n_per_m) && stiffness_n_per_m >= 0, "",
+                    "tether stiffness_n_per_m", "must be >= 0 and finite, got ", stiffness_n_per_m);
+  ARREG_CHECK_INPUT(target_mm.allFinite(), "", "tether target", "must be finite");
+  for (const Tether& t : tethers_)
+    ARREG_CHECK_INPUT(t.vertex != vertex, "", "tether vertex", vertex, " is tethered twice");
+  tethers_.push_back({vertex, target_mm, stiffness_n_per_m});
+}
+
+void VertexTetherEnergy::CheckVertices(const MechanicalState& state) const {
+  for (const Tether& t : tethers_)
+    ARREG_CHECK_INPUT(t.vertex < state.num_vertices(), "", "tether vertex", t.vertex,
+                      " out of range [0, ", state.num_vertices(), ")");
+}
+
+double VertexTetherEnergy::Value(const MechanicalState& state, const RowMatX3d& x) const {
+  CheckVertices(state);
+  double e = 0.0;
+  for (const Tether& t : tethers_)
+    e += 0.5 * t.stiffness_n_per_m * (x.row(t.vertex).transpose() - t.target_mm).squaredNorm();
+  return e;
+}
+
+void VertexTetherEnergy::AddGradient(const MechanicalState& state, const RowMatX3d& x,
+                                     RowMatX3d* gradient) const {
+  CheckVertices(state);
+  for (const Tether& t : tethers_)
+    gradient->row(t.vertex) += t.stiffness_n_per_m * (x.row(t.vertex) - t.target_mm.transpose());
+}
+
+void VertexTetherEnergy::AddHessian(const MechanicalState& state, const RowMatX3d&, double scale,
+                                    SystemMatrix* hessian) const {
+  CheckVertices(state);
+  for (const Tether& t : tethers_)
+    hessian->AddToVertexDiagonal(t.vertex, scale * t.stiffness_n_per_m);
+}
+
 }  // namespace arreg::mechanics

@@ -88,4 +88,31 @@ class PointForceEnergy : public EnergyTerm {
   std::vector<std::pair<int, Eigen::Vector3d>> forces_;
 };
 
+// Zero-length springs from vertices to fixed points: E = sum_i 1/2 k_i |x_{v_i} - t_i|^2.
+// A vertex may be listed once. Vertex indices outside the state (a state that lost vertices)
+// are an error; vertices added later (cuts append them) carry no tether.
+class VertexTetherEnergy : public EnergyTerm {
+ public:
+  std::string name() const override { return "vertex-tethers"; }
+  // Tethers vertex v to target_mm with stiffness k [N/m = mN/mm]. Throws arreg::Error for a
+  // negative index, a vertex tethered twice, a non-finite target or a negative or non-finite k.
+  void Add(int vertex, const Eigen::Vector3d& target_mm, double stiffness_n_per_m);
+  void Clear() { tethers_.clear(); }
+  int size() const { return static_cast<int>(tethers_.size()); }
+  double Value(const MechanicalState& state, const RowMatX3d& x) const override;
+  void AddGradient(const MechanicalState& state, const RowMatX3d& x,
+                   RowMatX3d* gradient) const override;
+  void AddHessian(const MechanicalState& state, const RowMatX3d& x, double scale,
+                  SystemMatrix* hessian) const override;
+
+ private:
+  struct Tether {
+    int vertex = -1;
+    Eigen::Vector3d target_mm = Eigen::Vector3d::Zero();
+    double stiffness_n_per_m = 0.0;
+  };
+  void CheckVertices(const MechanicalState& state) const;
+  std::vector<Tether> tethers_;
+};
+
 }  // namespace arreg::mechanics

@@ -211,6 +211,7 @@ TEST(Pipeline, StaticVideoKeepsModelInPlaceAndRecordsAreComplete) {
   EXPECT_NEAR(mech.at("spring_visible_area_mm2").get<double>(), 3600.0, 1e-6);
   EXPECT_NEAR(mech.at("spring_stiffness_resolved_n_per_m").get<double>(),
               170.0 * 5000.0 * 10.0 / attached * 1e-3, 1e-9);
+  EXPECT_GE(mech.at("out_of_view_tethered_vertices").get<int>(), 0);
   VideoReader overlay;
   overlay.Open(out + "/overlay.mp4");
   EXPECT_EQ(overlay.frame_count(), 8);
@@ -956,6 +957,13 @@ TEST(PipelineOptions, SpringStiffnessKeysRoundTrip) {
       PipelineOptionsToJson(ReadPipelineOptions(scene))["mechanics"]["output_spring_factor"]
           .get<double>(),
       12.0);
+  EXPECT_DOUBLE_EQ(o.mechanics.out_of_view_tether, 1.0);
+  scene.mechanics = {{"out_of_view_tether", 0.0}};
+  EXPECT_DOUBLE_EQ(ReadPipelineOptions(scene).mechanics.out_of_view_tether, 0.0);
+  EXPECT_DOUBLE_EQ(
+      PipelineOptionsToJson(ReadPipelineOptions(scene))["mechanics"]["out_of_view_tether"]
+          .get<double>(),
+      0.0);
   EXPECT_TRUE(o.mechanics.line_search);
   scene.mechanics = {{"line_search", false}};
   EXPECT_FALSE(ReadPipelineOptions(scene).mechanics.line_search);
@@ -974,7 +982,9 @@ TEST(PipelineOptions, SpringStiffnessKeysRoundTrip) {
                                    {"spring_stiffness_relative", std::nan("")},
                                    {"spring_stiffness_n_per_m", -500.0},
                                    {"output_spring_factor", -1.0},
-                                   {"output_spring_factor", std::nan("")}}) {
+                                   {"output_spring_factor", std::nan("")},
+                                   {"out_of_view_tether", -1.0},
+                                   {"out_of_view_tether", std::nan("")}}) {
     scene.mechanics = {{key, value}};
     try {
       ReadPipelineOptions(scene);
@@ -983,6 +993,53 @@ TEST(PipelineOptions, SpringStiffnessKeysRoundTrip) {
       EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
     }
   }
+}
+
+// The tether of tissue out of view: exactly the vertices projecting outside the image (or
+// behind the camera) are held, each with its share of the rest volume: a model seen nowhere
+// gets factor x N k in all; held vertices are left out; linear in the factor.
+TEST(OutOfViewTethers, HoldsTheVerticesOutsideTheImageByTheirVolumeShare) {
+  TetMesh mesh = MakeBoxTetMesh({100, 50, 10}, {10, 5, 2});
+  mesh.vertices.rowwise() += Eigen::RowVector3d(-50, -25, 200);
+  PinholeCamera camera;
+  camera.width = 640;
+  camera.height = 480;
+  camera.fx = camera.fy = 2000.0;  // 64 x 48 mm seen at 200 mm: the box's sides are out of view
+  camera.cx = 319.5;
+  camera.cy = 239.5;
+  const double total = 500.0, factor = 0.5;
+  const std::vector<VertexTether> tethers = OutOfViewTethers(mesh, camera, factor, total, {});
+  std::vector<char> tethered(mesh.num_vertices(), 0);
+  for (const VertexTether& t : tethers) {
+    tethered[t.vertex] = 1;
+    EXPECT_GT(t.stiffness_n_per_m, 0.0);
+  }
+  int outside = 0;
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    const bool in_image = camera.IsInImage(camera.Project(mesh.vertices.row(v).transpose()));
+    EXPECT_EQ(tethered[v] != 0, !in_image) << "vertex " << v;
+    outside += in_image ? 0 : 1;
+  }
+  EXPECT_GT(outside, 0);
+  EXPECT_LT(outside, mesh.num_vertices());
+  // Behind the camera nothing is seen: every vertex is tethered, the stiffnesses sum to
+  // factor x total (the volume shares sum to the volume).
+  TetMesh behind = mesh;
+  behind.vertices.col(2).array() -= 400.0;
+  const std::vector<VertexTether> all = OutOfViewTethers(behind, camera, factor, total, {});
+  ASSERT_EQ(static_cast<int>(all.size()), behind.num_vertices());
+  double sum = 0;
+  for (const VertexTether& t : all) sum += t.stiffness_n_per_m;
+  EXPECT_NEAR(sum, factor * total, 1e-9);
+  // Held vertices are left out; twice the factor, twice each stiffness; 0 is off.
+  const std::vector<VertexTether> without_first =
+      OutOfViewTethers(behind, camera, factor, total, {0, 1});
+  EXPECT_EQ(without_first.size(), all.size() - 2);
+  EXPECT_EQ(without_first.front().vertex, 2);
+  const std::vector<VertexTether> twice = OutOfViewTethers(behind, camera, 2 * factor, total, {});
+  for (size_t i = 0; i < all.size(); ++i)
+    EXPECT_NEAR(twice[i].stiffness_n_per_m, 2 * all[i].stiffness_n_per_m, 1e-12);
+  EXPECT_TRUE(OutOfViewTethers(behind, camera, 0.0, total, {}).empty());
 }
 
 // k = kappa x E x V / (A x N): linear in kappa, E and V, inverse in A and N; the documented

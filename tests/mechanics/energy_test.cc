@@ -4,7 +4,9 @@
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
+#include <cmath>
 
+#include "core/error.h"
 #include "mechanics/elastic_energy.h"
 #include "mechanics/spring_energy.h"
 #include "mechanics_test_util.h"
@@ -217,6 +219,41 @@ TEST(PointForces, EnergyIsMinusWork) {
   EXPECT_NEAR(forces.Value(state, x), -(2 * x(2, 0) + 2 * x(2, 1) + 3 * x(2, 2)), 1e-12);
   EXPECT_LT(RelativeError(Gradient(forces, state, x), NumericGradient(forces, state, x, 1e-3)),
             1e-9);
+}
+
+TEST(VertexTethers, GradientAndHessianMatchFiniteDifferences) {
+  const MechanicalState state(SmallBox({2, 1, 1}), Material{});
+  VertexTetherEnergy tethers;
+  tethers.Add(0, {1, 2, 3}, 50.0);
+  tethers.Add(4, state.rest_positions().row(4).transpose(), 20.0);
+  const RowMatX3d x = Perturbed(state.rest_positions(), 1.0, 3);
+  // At the rest positions only the first tether (target away from vertex 0) pulls.
+  const RowMatX3d g0 = Gradient(tethers, state, state.rest_positions());
+  EXPECT_EQ(g0.row(4).norm(), 0.0);
+  EXPECT_NEAR(g0.row(0).norm(),
+              50.0 * (state.rest_positions().row(0) - Eigen::RowVector3d(1, 2, 3)).norm(), 1e-9);
+  const RowMatX3d analytic = Gradient(tethers, state, x);
+  EXPECT_LT(RelativeError(analytic, NumericGradient(tethers, state, x, 1e-4)), 1e-8);
+  SystemMatrix H(state.num_vertices(), state.tetrahedra());
+  tethers.AddHessian(state, x, 1.0, &H);
+  const RowMatX3d dx = Perturbed(RowMatX3d::Zero(x.rows(), 3), 1.0, 5);
+  const RowMatX3d dg = Gradient(tethers, state, x + dx) - analytic;
+  const Eigen::VectorXd predicted =
+      H.matrix() * Eigen::Map<const Eigen::VectorXd>(dx.data(), dx.size());
+  EXPECT_LT((predicted - Eigen::Map<const Eigen::VectorXd>(dg.data(), dg.size())).norm(),
+            1e-10 * dg.norm());
+}
+
+TEST(VertexTethers, RejectsBadInput) {
+  const MechanicalState state(SmallBox({1, 1, 1}), Material{});
+  VertexTetherEnergy tethers;
+  EXPECT_THROW(tethers.Add(-1, {0, 0, 0}, 1.0), Error);
+  EXPECT_THROW(tethers.Add(0, {0, 0, 0}, -1.0), Error);
+  EXPECT_THROW(tethers.Add(0, {0, std::nan(""), 0}, 1.0), Error);
+  tethers.Add(0, {0, 0, 0}, 1.0);
+  EXPECT_THROW(tethers.Add(0, {1, 0, 0}, 1.0), Error);
+  tethers.Add(state.num_vertices(), {0, 0, 0}, 1.0);  // checked against the state when used
+  EXPECT_THROW(tethers.Value(state, state.rest_positions()), Error);
 }
 
 }  // namespace

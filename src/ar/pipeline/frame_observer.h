@@ -165,6 +165,7 @@ struct RunStart {
   int features_on_thin = 0;                     // of features_attached: on a shell
   int features_detected = 0, features_attached = 0;
   const SpringStiffness* springs = nullptr;  // the feature spring stiffness resolved at frame 0
+  int tethered_vertices = 0;  // model vertices out of view held by the out-of-view tether
   // The cut detector's options in use: radii resolved from the features at Initialize. Null
   // without cut handling.
   const cutting::CutDetectorOptions* detector = nullptr;

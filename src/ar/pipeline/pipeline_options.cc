@@ -4,6 +4,7 @@
 
 #include "core/error.h"
 #include "core/json_reader.h"
+#include "core/mesh_ops.h"
 
 namespace arreg::pipeline {
 
@@ -28,6 +29,8 @@ void MechanicsStageOptions::Check() const {
                     "must be finite");
   for (int v : fixed_vertices)
     ARREG_CHECK_INPUT(v >= 0, "", "mechanics.fixed_vertices", "indices must be >= 0, got ", v);
+  ARREG_CHECK_INPUT(std::isfinite(out_of_view_tether) && out_of_view_tether >= 0, "",
+                    "mechanics.out_of_view_tether", "must be >= 0, got ", out_of_view_tether);
 }
 
 const char* CutConfigurationName(CutConfiguration configuration) {
@@ -134,6 +137,29 @@ SpringStiffness ResolveSpringStiffness(const MechanicsStageOptions& mechanics,
   return k;
 }
 
+std::vector<VertexTether> OutOfViewTethers(const TetMesh& mesh, const PinholeCamera& camera,
+                                           double factor, double total_spring_n_per_m,
+                                           const std::vector<int>& fixed) {
+  std::vector<VertexTether> tethers;
+  if (!(factor > 0) || !(total_spring_n_per_m > 0) || mesh.num_tetrahedra() == 0) return tethers;
+  const Eigen::VectorXd volumes = TetVolumes(mesh);
+  Eigen::VectorXd share = Eigen::VectorXd::Zero(mesh.num_vertices());
+  for (int t = 0; t < mesh.num_tetrahedra(); ++t)
+    for (int a = 0; a < 4; ++a) share(mesh.tetrahedra(t, a)) += 0.25 * volumes(t);
+  const double volume = volumes.sum();
+  if (!(volume > 0)) return tethers;
+  std::vector<char> held(mesh.num_vertices(), 0);
+  for (int v : fixed)
+    if (v >= 0 && v < mesh.num_vertices()) held[v] = 1;
+  for (int v = 0; v < mesh.num_vertices(); ++v) {
+    if (held[v] || !(share(v) > 0)) continue;
+    const Eigen::Vector3d projected = camera.ProjectWithDepth(mesh.vertices.row(v).transpose());
+    if (projected.z() > 0 && camera.IsInImage(projected.head<2>())) continue;
+    tethers.push_back({v, factor * total_spring_n_per_m * share(v) / volume});
+  }
+  return tethers;
+}
+
 double AreaFacing(const SurfaceMesh& surface, const Eigen::Vector3d& eye_world) {
   double area_mm2 = 0;
   for (int f = 0; f < surface.faces.rows(); ++f) {
@@ -216,6 +242,7 @@ void ReadMechanics(const Scene& scene, MechanicsStageOptions* o) {
   r.Optional("rayleigh_stiffness_s", &o->rayleigh_stiffness_s);
   r.Optional("gravity_mm_per_s2", &o->gravity_mm_per_s2);
   r.Optional("fixed_vertices", &o->fixed_vertices);
+  r.Optional("out_of_view_tether", &o->out_of_view_tether);
   std::string linear_solver = mechanics::LinearSolverTypeName(o->linear_solver);
   r.OptionalChoice("linear_solver", {"cholmod-pcg", "cholmod", "cg"}, &linear_solver);
   o->linear_solver = mechanics::ParseLinearSolverType(linear_solver);
@@ -392,6 +419,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"rayleigh_stiffness_s", o.mechanics.rayleigh_stiffness_s},
       {"gravity_mm_per_s2", vec(o.mechanics.gravity_mm_per_s2)},
       {"fixed_vertices", o.mechanics.fixed_vertices},
+      {"out_of_view_tether", o.mechanics.out_of_view_tether},
       {"linear_solver", mechanics::LinearSolverTypeName(o.mechanics.linear_solver)},
       {"line_search", o.mechanics.line_search},
       {"output_spring_factor", o.mechanics.output_spring_factor}};

@@ -53,6 +53,15 @@ struct MechanicsStageOptions {
   Eigen::Vector3d gravity_mm_per_s2 = Eigen::Vector3d::Zero();
   // Model vertices held at their frame-0 position (indices into the model mesh); default none.
   std::vector<int> fixed_vertices;
+  // Tether of the tissue out of view (dimensionless, >= 0; 0 off): the model vertices that
+  // project outside the image at frame 0 are never observed, yet the tissue there stays
+  // attached to the anatomy beyond the view; without a prior the stretched model's elasticity
+  // pulls that part into the image. Each such vertex v is held at its frame-0 place by a
+  // zero-length spring k_v = out_of_view_tether x N k x V_v / V (N k the feature springs' total
+  // stiffness, V_v the vertex's share of the rest volume V): 1 holds the unseen tissue, per
+  // unit volume, as firmly as the feature springs hold the whole model. Tet models of degree 1
+  // without thin structures (docs/springs.md, "Tissue out of view").
+  double out_of_view_tether = 1.0;
   // kCholmodPcg (default, "cholmod-pcg": CG preconditioned by the CHOLMOD factor of an earlier
   // frame's matrix, refactorised when CG slows down), kCholmod ("cholmod": exact, refactorised
   // every step) or kConjugateGradient ("cg": block-Jacobi preconditioned).
@@ -270,6 +279,21 @@ SpringStiffness ResolveSpringStiffness(const MechanicsStageOptions& mechanics,
 // Area [mm^2] of the faces of `surface` whose outward side faces the point `eye_world` (the
 // camera centre): every feature attached by a ray from the camera lies on such a face.
 double AreaFacing(const SurfaceMesh& surface, const Eigen::Vector3d& eye_world);
+
+// A model vertex held at its frame-0 place by a zero-length spring (MechanicsStageOptions::
+// out_of_view_tether).
+struct VertexTether {
+  int vertex = -1;
+  double stiffness_n_per_m = 0;
+};
+
+// The tethers of the vertices of `mesh` (rest positions = frame 0) that project outside the
+// camera's image or lie behind it: k_v = factor x total_spring_n_per_m x V_v / V, V_v a
+// quarter of the rest volume of each tetrahedron at v, V the rest volume. Vertices in `fixed`
+// and vertices of no tetrahedron are left out. Empty when factor or total_spring_n_per_m is 0.
+std::vector<VertexTether> OutOfViewTethers(const TetMesh& mesh, const PinholeCamera& camera,
+                                           double factor, double total_spring_n_per_m,
+                                           const std::vector<int>& fixed);
 
 // Reads the options from the scene's module sections (unknown keys are errors naming
 // "scene.json: mechanics.sprng_stiffness"); missing keys keep the defaults above, except

@@ -108,6 +108,7 @@ void RecordWriter::OnStart(const RunStart& start) {
     m["spring_stiffness_resolved_n_per_m"] = start.springs->n_per_m;
     m["spring_model_volume_mm3"] = start.springs->volume_mm3;
     m["spring_visible_area_mm2"] = start.springs->visible_area_mm2;
+    m["out_of_view_tethered_vertices"] = start.tethered_vertices;
   }
   run_["model"] = {{"vertices", start.model_vertices}, {"tetrahedra", start.model_tetrahedra}};
   run_["features"] = {{"detected", start.features_detected}, {"attached", start.features_attached}};

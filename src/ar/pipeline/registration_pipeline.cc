@@ -668,6 +668,28 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
     }
     v.alive = v.spring_active = v.attached = true;
   }
+  mechanics::VertexTetherEnergy tethers;
+  if (o.mechanics.out_of_view_tether > 0 && attached > 0 && has_tets) {
+    const std::vector<VertexTether> out_of_view =
+        OutOfViewTethers(impl_->model.mesh, camera, o.mechanics.out_of_view_tether,
+                         stiffness.n_per_m * stiffness.springs, o.mechanics.fixed_vertices);
+    if (thin || degree > 1) {
+      if (!out_of_view.empty())
+        ARREG_LOG_WARNING("mechanics.out_of_view_tether: ", out_of_view.size(),
+                          " model vertices out of view are not tethered (tetrahedra of degree 1 "
+                          "without thin structures only)");
+    } else {
+      for (const VertexTether& t : out_of_view)
+        tethers.Add(t.vertex, impl_->model.mesh.vertices.row(t.vertex).transpose(),
+                    t.stiffness_n_per_m);
+      if (tethers.size() > 0) {
+        terms.push_back(&tethers);
+        other_terms.push_back(&tethers);
+        ARREG_LOG_INFO("mechanics: ", tethers.size(),
+                       " model vertices out of view at frame 0 tethered to their place");
+      }
+    }
+  }
   springs_timer.Stop();
 
   // Cut detection over the attached features (detector ids = feature rows).
@@ -730,6 +752,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   start.features_detected = nf;
   start.features_attached = attached;
   start.springs = &stiffness;
+  start.tethered_vertices = tethers.size();
   if (detector) start.detector = &detector->options();
   for (FrameObserver* ob : impl_->observers) ob->OnStart(start);
   ARREG_LOG_DEBUG("run: ", nf, " features detected in the model silhouette, ", attached,
