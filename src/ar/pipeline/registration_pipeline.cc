@@ -535,6 +535,7 @@ RunSummary RegistrationPipeline::Run(const RunOptions& run_options) {
   std::vector<SurfaceMesh> internal = impl_->model.internal;
   std::vector<RowMatX3d> internal_rest = [&] {
     std::vector<RowMatX3d> r;
+    r.reserve(internal.size());
     for (const SurfaceMesh& m : internal) r.push_back(m.vertices);
     return r;
   }();
