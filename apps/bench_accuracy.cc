@@ -199,7 +199,7 @@ eval::SceneResult ProcessScene(const eval::BenchScene& b, const Settings& s,
                     eval::ReadTrueCut(scene.ground_truth_path), s.metrics, &result);
     eval::ScoreRegistration(ew, eo_run, &result);
   } catch (const std::exception& e) {
-    result.status = "failed";
+    result.status = eval::SceneStatus::kFailed;
     result.reason = e.what();
   }
   if (!s.keep_runs) {
@@ -246,7 +246,7 @@ pid_t StartWorker(const eval::BenchScene& b, int index, int total, const Setting
               what.c_str());
     };
     const eval::SceneResult r = ProcessScene(b, s, say);
-    if (r.status == "failed")
+    if (r.status == eval::SceneStatus::kFailed)
       std::fprintf(stderr, "bench: %s: %s\n", b.name.c_str(), r.reason.c_str());
     CreateDirectories(s.cache + "/runs/" + b.name);
     WriteFileAtomic(ResultPath(s, b.name),
@@ -269,7 +269,7 @@ void RunScenes(const std::vector<eval::BenchScene>& scenes, int jobs, const Sett
   while (next < total || !running.empty()) {
     while (static_cast<int>(running.size()) < jobs && next < total) {
       const int i = next++;
-      if ((*results)[i].status == "skipped") {
+      if ((*results)[i].status == eval::SceneStatus::kSkipped) {
         std::fprintf(stderr, "bench: [%d/%d] %s: skipped (%s)\n", i + 1, total,
                      scenes[i].name.c_str(), (*results)[i].reason.c_str());
         ++done;
@@ -296,12 +296,12 @@ void RunScenes(const std::vector<eval::BenchScene>& scenes, int jobs, const Sett
     if (FileExists(path)) {
       r = eval::SceneResult::FromJson(ParseJsonFile(path), path);
     } else {
-      r.status = "failed";
+      r.status = eval::SceneStatus::kFailed;
       r.reason = WIFSIGNALED(status)
                      ? "worker killed by signal " + std::to_string(WTERMSIG(status))
                      : "worker exited with code " + std::to_string(WEXITSTATUS(status));
     }
-    if (r.status == "ok")
+    if (r.status == eval::SceneStatus::kOk)
       std::fprintf(stderr, "bench: [%d/%d] %s: done in %.0f s (%d cuts applied), %d of %d left\n",
                    i + 1, total, r.name.c_str(), r.seconds, r.applied_cuts, total - done, total);
     else
@@ -389,7 +389,7 @@ int RunBenchAccuracy(int argc, char** argv) {
     eval::SceneResult r = eval::SceneResult::For(b);
     const std::string why = Unavailable(b.source, s);
     if (!why.empty()) {
-      r.status = "skipped";
+      r.status = eval::SceneStatus::kSkipped;
       r.reason = why;
     }
     results.push_back(r);
@@ -402,9 +402,9 @@ int RunBenchAccuracy(int argc, char** argv) {
   std::printf("%s", eval::FormatTable(rows).c_str());
   int failed = 0;
   for (const eval::SceneResult& r : results) {
-    if (r.status == "ok") continue;
-    failed += r.status == "failed";
-    std::printf("%s %s: %s\n", r.status.c_str(), r.name.c_str(), r.reason.c_str());
+    if (r.status == eval::SceneStatus::kOk) continue;
+    failed += r.status == eval::SceneStatus::kFailed;
+    std::printf("%s %s: %s\n", eval::SceneStatusName(r.status), r.name.c_str(), r.reason.c_str());
   }
   nlohmann::json acceptance = nlohmann::json::object();
   std::set<std::string> splits;

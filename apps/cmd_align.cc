@@ -35,7 +35,8 @@ int RunAlign(int argc, char** argv) {
   parser.AddString("out", &job.out_path, "ALIGNED.json", "aligned scene to write", true);
   parser.AddString("overlay", &job.overlay_path, "PNG", "overlay (default: OUT's .overlay.png)");
   parser.AddString("summary", &job.summary_path, "JSON", "summary (default: OUT's .summary.json)");
-  parser.AddString("loss", &job.options.robust_loss, "huber|cauchy|none", "robust loss");
+  std::string loss = align::RobustLossName(job.options.robust_loss);
+  parser.AddString("loss", &loss, "huber|cauchy|none", "robust loss");
   parser.AddDouble("loss-scale", &job.options.loss_scale_px, "PX",
                    "where the robust loss leaves the quadratic (px)");
   parser.AddInt("local-starts", &job.options.local_starts, "N",
@@ -51,6 +52,7 @@ int RunAlign(int argc, char** argv) {
   if (!mask.empty() && !outline.empty())
     throw UsageError("--mask/--outline", "give one of them, not both");
   job.outline_path = mask.empty() ? outline : mask;
+  job.options.robust_loss = align::ParseRobustLoss(loss, "--loss");
 
   const align::AlignJobResult out = align::RunAlignJob(job);
   const align::AlignResult& r = out.result;

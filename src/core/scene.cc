@@ -202,8 +202,11 @@ Scene ParseScene(const nlohmann::json& json, const std::string& path,
   const bool check = options.check_files_exist;
 
   JsonObjectReader root(json, path, "");
-  if (root.OptionalChoice("units", {"mm", "m"}, &scene.units))
-    scene.mm_per_unit = scene.units == "m" ? 1000.0 : 1.0;
+  std::string units = "mm";
+  if (root.OptionalChoice("units", {"mm", "m"}, &units)) {
+    scene.units = units == "m" ? LengthUnit::kMetre : LengthUnit::kMillimetre;
+    scene.mm_per_unit = scene.units == LengthUnit::kMetre ? 1000.0 : 1.0;
+  }
   root.Optional("description", &scene.description);
 
   // The top-level material first: thin structures default to it.
@@ -328,7 +331,7 @@ Scene ReadScene(const std::string& path, const ReadSceneOptions& options) {
 
 nlohmann::json SceneToJson(const Scene& scene, const std::string& directory) {
   nlohmann::json j;
-  j["units"] = scene.units;
+  j["units"] = scene.units == LengthUnit::kMetre ? "m" : "mm";
   if (!scene.description.empty()) j["description"] = scene.description;
   const bool identity = scene.world_from_model.matrix() == Eigen::Matrix4d::Identity();
   if (!scene.model_mesh_path.empty()) {

@@ -58,14 +58,17 @@ struct ThinStructure {
   double opacity = 1.0;                                    // in [0, 1]
 };
 
+// Unit of the coordinates in a scene's mesh files; "mm" and "m" in scene files.
+enum class LengthUnit { kMillimetre, kMetre };
+
 struct Scene {
   std::string path;       // the scene file as given to ReadScene ("" for in-memory scenes)
   std::string directory;  // folder that relative paths are resolved against
 
   // Unit of the coordinates in the referenced mesh files. arreg works in
   // millimetres; loaders multiply mesh coordinates by mm_per_unit.
-  std::string units = "mm";  // "mm" or "m"
-  double mm_per_unit = 1.0;  // 1 for "mm", 1000 for "m"
+  LengthUnit units = LengthUnit::kMillimetre;
+  double mm_per_unit = 1.0;  // 1 for millimetres, 1000 for metres
   std::string description;   // free text, optional
 
   // Tetrahedral mesh of the organ (resolved); "" for a scene of thin structures only.

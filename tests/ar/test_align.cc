@@ -22,6 +22,18 @@ using testing::GetAlignScene;
 
 PinholeCamera TestCamera() { return PinholeCamera::FromFieldOfView(640, 512, 60.0); }
 
+TEST(AlignOptions, RobustLossNamesRoundTripAndOthersAreErrors) {
+  for (RobustLoss loss : {RobustLoss::kHuber, RobustLoss::kCauchy, RobustLoss::kNone})
+    EXPECT_EQ(ParseRobustLoss(RobustLossName(loss), "--loss"), loss);
+  EXPECT_EQ(AlignOptions().robust_loss, RobustLoss::kHuber);
+  try {
+    ParseRobustLoss("Huber", "--loss");
+    FAIL() << "'Huber' was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("--loss"), std::string::npos) << e.what();
+  }
+}
+
 TEST(AlignOutline, DiskSignedDistanceAndBoundary) {
   const PinholeCamera camera = TestCamera();
   cv::Mat mask = cv::Mat::zeros(512, 640, CV_8U);

@@ -119,6 +119,27 @@ TEST(BenchMetrics, CutsAreFoundOrMisplacedAndTheLatencyCountsFromTheOpening) {
   EXPECT_FALSE(stretch.cut_line_error_mm.has_value());
 }
 
+TEST(BenchResult, StatusRoundTripsThroughJsonAndABadOneNamesTheFile) {
+  SceneResult r;
+  r.name = "s";
+  r.status = SceneStatus::kSkipped;
+  r.reason = "no blender";
+  const nlohmann::json j = r.ToJson();
+  EXPECT_EQ(j.at("status"), "skipped");
+  EXPECT_EQ(SceneResult::FromJson(j, "result.json").status, SceneStatus::kSkipped);
+  for (SceneStatus s : {SceneStatus::kOk, SceneStatus::kSkipped, SceneStatus::kFailed})
+    EXPECT_EQ(ParseSceneStatus(SceneStatusName(s), "status"), s);
+  nlohmann::json bad = j;
+  bad["status"] = "done";
+  try {
+    SceneResult::FromJson(bad, "result.json");
+    FAIL() << "status 'done' was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("result.json"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("status"), std::string::npos) << e.what();
+  }
+}
+
 TEST(BenchAggregation, RatesMediansAndRatiosOverScenes) {
   std::vector<SceneResult> results;
   const double with[3] = {0.97, 0.95, 0.90}, without[3] = {0.91, 0.85, 0.90};
@@ -139,7 +160,7 @@ TEST(BenchAggregation, RatesMediansAndRatiosOverScenes) {
     results.push_back(r);
   }
   SceneResult failed = Result("cut3", "band-cut-v", "cut");
-  failed.status = "failed";
+  failed.status = SceneStatus::kFailed;
   results.push_back(failed);
   for (int k = 0; k < 4; ++k) {
     SceneResult r = Result("stretch" + std::to_string(k), "band-stretch", "stretch");

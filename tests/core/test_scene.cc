@@ -75,7 +75,7 @@ struct SceneFixture {
 TEST(Scene, FullSceneParses) {
   SceneFixture f("scene_full");
   const Scene s = ReadScene(f.Write(f.scene));
-  EXPECT_EQ(s.units, "m");
+  EXPECT_EQ(s.units, LengthUnit::kMetre);
   EXPECT_EQ(s.mm_per_unit, 1000.0);
   EXPECT_EQ(s.description, "synthetic liver");
   EXPECT_EQ(s.model_mesh_path, fs::weakly_canonical(f.dir + "/meshes/liver.msh").string());
@@ -109,7 +109,7 @@ TEST(Scene, MinimalSceneUsesDefaults) {
   const json j = {
       {"model", "meshes/liver.msh"}, {"camera", f.scene["camera"]}, {"video", "video/take1.mp4"}};
   const Scene s = ReadScene(f.Write(j));
-  EXPECT_EQ(s.units, "mm");
+  EXPECT_EQ(s.units, LengthUnit::kMillimetre);
   EXPECT_EQ(s.mm_per_unit, 1.0);
   EXPECT_TRUE(s.world_from_model.isApprox(Eigen::Isometry3d::Identity()));
   EXPECT_TRUE(s.internal_structures.empty());

@@ -91,7 +91,7 @@ void WriteAlignedScene(const Scene& input, const ModelPose& pose, const std::str
           fs::absolute(stem + ".structure" + std::to_string(i) + ".obj").string();
       WriteSurfaceMesh(scene.internal_structures[i].mesh_path, s);
     }
-    scene.units = "mm";
+    scene.units = LengthUnit::kMillimetre;
     scene.mm_per_unit = 1.0;
   }
   WriteScene(out_path, scene);
@@ -237,7 +237,7 @@ AlignJobResult RunAlignJob(const AlignJob& job) {
                        {"landmarks", job.landmarks_path},
                        {"init_pose", job.init_pose.empty() ? "search" : job.init_pose},
                        {"estimate_scale", job.options.estimate_scale},
-                       {"robust_loss", job.options.robust_loss}};
+                       {"robust_loss", RobustLossName(job.options.robust_loss)}};
   summary["overlay"] = out.overlay_path;
   summary["video_frame_used"] = out.video_frame_used;
   WriteFileAtomic(out.summary_path, [&](std::ostream& os) { os << summary.dump(2) << "\n"; });

@@ -35,10 +35,26 @@ std::vector<Landmark> ReadLandmarks(const std::string& path) {
   return landmarks;
 }
 
+const char* RobustLossName(RobustLoss loss) {
+  switch (loss) {
+    case RobustLoss::kHuber:
+      return "huber";
+    case RobustLoss::kCauchy:
+      return "cauchy";
+    case RobustLoss::kNone:
+      return "none";
+  }
+  return "?";
+}
+
+RobustLoss ParseRobustLoss(const std::string& name, const std::string& field) {
+  for (RobustLoss loss : {RobustLoss::kHuber, RobustLoss::kCauchy, RobustLoss::kNone})
+    if (name == RobustLossName(loss)) return loss;
+  throw Error("", field, "must be huber, cauchy or none, got '" + name + "'");
+}
+
 void AlignOptions::Check() const {
   const std::string f = "";
-  ARREG_CHECK_INPUT(robust_loss == "huber" || robust_loss == "cauchy" || robust_loss == "none", f,
-                    "align.robust_loss", "must be huber, cauchy or none, got '", robust_loss, "'");
   ARREG_CHECK_INPUT(loss_scale_px > 0, f, "align.loss_scale_px", "must be > 0");
   ARREG_CHECK_INPUT(contour_spacing_px >= 1, f, "align.contour_spacing_px", "must be >= 1");
   ARREG_CHECK_INPUT(silhouette_weight > 0 && landmark_weight > 0, f, "align.weights",
@@ -192,10 +208,16 @@ ModelPose ToPose(const Parameters& p, const Eigen::Vector3d& centroid) {
 
 ceres::LossFunction* MakeLoss(const AlignOptions& o, double weight) {
   ceres::LossFunction* base = nullptr;
-  if (o.robust_loss == "huber")
-    base = new ceres::HuberLoss(o.loss_scale_px);
-  else if (o.robust_loss == "cauchy")
-    base = new ceres::CauchyLoss(o.loss_scale_px);
+  switch (o.robust_loss) {
+    case RobustLoss::kHuber:
+      base = new ceres::HuberLoss(o.loss_scale_px);
+      break;
+    case RobustLoss::kCauchy:
+      base = new ceres::CauchyLoss(o.loss_scale_px);
+      break;
+    case RobustLoss::kNone:
+      break;
+  }
   return new ceres::ScaledLoss(base, weight, ceres::TAKE_OWNERSHIP);
 }
 

@@ -24,13 +24,20 @@ struct Landmark {
 // the file and the entry.
 std::vector<Landmark> ReadLandmarks(const std::string& path);
 
+// Robust loss on the residuals (px): Huber, Cauchy, or none (least squares).
+enum class RobustLoss { kHuber, kCauchy, kNone };
+// The spelling on the command line and in summaries: "huber", "cauchy", "none".
+const char* RobustLossName(RobustLoss loss);
+// Inverse of RobustLossName; throws arreg::Error naming `field` for any other name.
+RobustLoss ParseRobustLoss(const std::string& name, const std::string& field);
+
 struct AlignOptions {
   // Also estimate a uniform scale (default off: rigid). One image cannot tell a larger organ
   // from a nearer one, so the centroid's distance from the camera is then held at the start's.
   bool estimate_scale = false;
-  std::string robust_loss = "huber";  // "huber", "cauchy" or "none", default huber
-  double loss_scale_px = 2.0;         // px where the robust loss leaves the quadratic, default 2
-  double contour_spacing_px = 3.0;    // distance between silhouette samples (px), default 3
+  RobustLoss robust_loss = RobustLoss::kHuber;  // default Huber
+  double loss_scale_px = 2.0;       // px where the robust loss leaves the quadratic, default 2
+  double contour_spacing_px = 3.0;  // distance between silhouette samples (px), default 3
   // Contour samples on the smooth surface through the mesh's vertices instead of its chords
   // (ModelSurface::EdgePoint): a coarse model's faces sag inside the organ, which makes its
   // silhouette too small. On the kidney scene it takes the outline-only error from 1.7-2.1 deg /

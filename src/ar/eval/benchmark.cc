@@ -298,13 +298,31 @@ SceneResult SceneResult::For(const BenchScene& scene) {
   return r;
 }
 
+const char* SceneStatusName(SceneStatus status) {
+  switch (status) {
+    case SceneStatus::kOk:
+      return "ok";
+    case SceneStatus::kSkipped:
+      return "skipped";
+    case SceneStatus::kFailed:
+      return "failed";
+  }
+  return "?";
+}
+
+SceneStatus ParseSceneStatus(const std::string& name, const std::string& field) {
+  for (SceneStatus s : {SceneStatus::kOk, SceneStatus::kSkipped, SceneStatus::kFailed})
+    if (name == SceneStatusName(s)) return s;
+  throw Error("", field, "must be ok, skipped or failed, got '" + name + "'");
+}
+
 nlohmann::json SceneResult::ToJson() const {
   return {{"name", name},
           {"source", source},
           {"scenario", scenario},
           {"split", split},
           {"class", scene_class},
-          {"status", status},
+          {"status", SceneStatusName(status)},
           {"reason", reason},
           {"applied_cuts", applied_cuts},
           {"found_cuts", found_cuts},
@@ -332,7 +350,7 @@ SceneResult SceneResult::FromJson(const nlohmann::json& j, const std::string& fi
     r.scenario = j.at("scenario").get<std::string>();
     r.split = j.at("split").get<std::string>();
     r.scene_class = j.at("class").get<std::string>();
-    r.status = j.at("status").get<std::string>();
+    r.status = ParseSceneStatus(j.at("status").get<std::string>(), "status");
     r.reason = j.at("reason").get<std::string>();
     r.applied_cuts = j.at("applied_cuts").get<int>();
     r.found_cuts = j.at("found_cuts").get<int>();
@@ -352,6 +370,8 @@ SceneResult SceneResult::FromJson(const nlohmann::json& j, const std::string& fi
     r.seconds = j.at("seconds").get<double>();
   } catch (const nlohmann::json::exception& e) {
     throw Error(file, "", std::string("not a scene result: ") + e.what());
+  } catch (const Error& e) {
+    throw Error(file, e.where(), e.detail());
   }
   return r;
 }
@@ -452,9 +472,9 @@ std::vector<GroupRow> AggregateResults(const std::vector<SceneResult>& results) 
       it->row.scene_class = r.scene_class;
     }
     ++it->row.scenes;
-    if (r.status == "ok") it->ok.push_back(&r);
-    it->row.skipped += r.status == "skipped";
-    it->row.failed += r.status == "failed";
+    if (r.status == SceneStatus::kOk) it->ok.push_back(&r);
+    it->row.skipped += r.status == SceneStatus::kSkipped;
+    it->row.failed += r.status == SceneStatus::kFailed;
   }
   std::vector<GroupRow> rows;
   for (Group& g : groups) {
@@ -543,7 +563,7 @@ nlohmann::json Criterion::ToJson() const {
 std::vector<Criterion> AcceptanceCriteria(const std::vector<SceneResult>& results) {
   std::vector<const SceneResult*> cut, no_cut, stretch;
   for (const SceneResult& r : results) {
-    if (r.status != "ok") continue;
+    if (r.status != SceneStatus::kOk) continue;
     if (r.scene_class == "cut") cut.push_back(&r);
     if (r.scene_class != "cut") no_cut.push_back(&r);
     if (r.scene_class == "stretch") stretch.push_back(&r);

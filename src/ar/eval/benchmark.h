@@ -90,14 +90,21 @@ struct TrueCut {
 };
 TrueCut ReadTrueCut(const std::string& gt_dir);
 
+// How a scene of the benchmark ended: measured, skipped (its source is unavailable) or failed.
+enum class SceneStatus { kOk, kSkipped, kFailed };
+// The spelling in the JSON: "ok", "skipped", "failed".
+const char* SceneStatusName(SceneStatus status);
+// Inverse of SceneStatusName; throws arreg::Error naming `field` for any other name.
+SceneStatus ParseSceneStatus(const std::string& name, const std::string& field);
+
 // Everything the benchmark reports for one scene (docs/benchmark.md "Metrics").
 struct SceneResult {
   std::string name, source, scenario, split, scene_class;
-  std::string status = "ok";  // "ok", "skipped" (source unavailable) or "failed"
-  std::string reason;         // why skipped or failed
-  int applied_cuts = 0;       // applied cut events of the run with topology
-  int found_cuts = 0;         // of those within found_within_mm of the true cut surface
-  int misplaced_cuts = 0;     // the others (on a no-cut scene: every applied event)
+  SceneStatus status = SceneStatus::kOk;
+  std::string reason;      // why skipped or failed
+  int applied_cuts = 0;    // applied cut events of the run with topology
+  int found_cuts = 0;      // of those within found_within_mm of the true cut surface
+  int misplaced_cuts = 0;  // the others (on a no-cut scene: every applied event)
   bool cut_found = false;
   std::optional<double> cut_line_error_mm;  // every applied polyline together (cut scenes)
   std::optional<int> opening_frame;         // first frame with opening >= opening_mm
