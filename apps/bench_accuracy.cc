@@ -61,7 +61,7 @@ bool OnPath(const std::string& name) {
   while (start <= dirs.size()) {
     const size_t end = std::min(dirs.find(':', start), dirs.size());
     const std::string dir = dirs.substr(start, end - start);
-    if (!dir.empty() && IsExecutable(dir + "/" + name)) return true;
+    if (!dir.empty() && IsExecutable((fs::path(dir) / name).string())) return true;
     start = end + 1;
   }
   return false;
@@ -83,6 +83,7 @@ void RunTool(const std::vector<std::string>& args) {
   ARREG_CHECK_INPUT(pid >= 0, args[0], "", "cannot start: ", std::strerror(errno));
   if (pid == 0) {
     std::vector<char*> argv;
+    argv.reserve(args.size() + 1);
     for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
     argv.push_back(nullptr);
     execv(argv[0], argv.data());
@@ -128,7 +129,7 @@ void Generate(const eval::BenchScene& b, const Settings& s, const std::string& d
 
 // The scene's folder in the cache, generated when missing or incomplete.
 std::string EnsureScene(const eval::BenchScene& b, const Settings& s) {
-  const std::string dir = s.cache + "/scenes/" + b.CacheKey();
+  std::string dir = s.cache + "/scenes/" + b.CacheKey();
   if (FileExists(dir + "/" + kCompleteMarker) && FileExists(dir + "/scene.json")) return dir;
   std::error_code ec;
   fs::remove_all(dir, ec);  // an interrupted generation

@@ -57,7 +57,7 @@ std::string CheckedPath(const std::string& value, const std::string& file,
                         const std::string& key_path, const Scene& scene, bool check_exists,
                         PathKind kind) {
   if (value.empty()) throw Error(file, key_path, "path is empty");
-  const std::string resolved = scene.ResolvePath(value);
+  std::string resolved = scene.ResolvePath(value);
   if (check_exists) {
     std::error_code ec;
     const fs::file_status status = fs::status(resolved, ec);

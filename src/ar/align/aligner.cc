@@ -94,7 +94,7 @@ struct CameraModel {
   template <typename T>
   bool Project(const T* w, T* px) const {
     T pc[3];
-    for (int i = 0; i < 3; ++i)
+    for (std::ptrdiff_t i = 0; i < 3; ++i)
       pc[i] = r[3 * i] * w[0] + r[3 * i + 1] * w[1] + r[3 * i + 2] * w[2] + t[i];
     if (!(pc[2] > T(kNearMm))) return false;
     const T x = pc[0] / pc[2], y = pc[1] / pc[2];

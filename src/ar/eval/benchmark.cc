@@ -245,7 +245,9 @@ std::vector<AppliedCut> ReadAppliedCuts(const std::string& frames_jsonl) {
   for (int number = 1; std::getline(in, line); ++number) {
     if (line.empty()) continue;
     const std::string where = "line " + std::to_string(number);
-    const nlohmann::json record = ParseJsonText(line, frames_jsonl + " " + where);
+    std::string context = frames_jsonl;
+    context.append(" ").append(where);
+    const nlohmann::json record = ParseJsonText(line, context);
     if (!record.contains("cut_events")) continue;
     for (const nlohmann::json& e : record["cut_events"]) {
       if (!e.is_object() || e.value("status", "") != "cut") continue;
@@ -571,6 +573,7 @@ std::vector<Criterion> AcceptanceCriteria(const std::vector<SceneResult>& result
   std::vector<GroupRow> cut_rows;
   {
     std::vector<SceneResult> cut_results;
+    cut_results.reserve(cut.size());
     for (const SceneResult* r : cut) cut_results.push_back(*r);
     cut_rows = AggregateResults(cut_results);
   }
