@@ -15,6 +15,7 @@ extern "C" {
 #include <libavcodec/avcodec.h>
 #include <libavformat/avformat.h>
 #include <libavutil/imgutils.h>
+#include <libavutil/mem.h>
 #include <libavutil/opt.h>
 #include <libavutil/pixdesc.h>
 #include <libswscale/swscale.h>
@@ -50,9 +51,19 @@ void FfmpegLogCallback(void* avcl, int level, const char* fmt, va_list vl) {
   if (!text.empty()) LogMessage(LogLevel::kDebug, "ffmpeg: " + text);
 }
 
-void InstallFfmpegLogging() {
+// The largest single block FFmpeg may allocate. A damaged container can declare table sizes
+// its file could never hold (an mp4 of 1.4 KB asked for 1.6 GB); with this cap the demuxer
+// fails with ENOMEM, which is reported as a bad file. Real frames stay far below it: an 8K RGB
+// frame is 100 MB.
+constexpr size_t kFfmpegMaxAllocationBytes = size_t{256} << 20;
+
+// Once per process: FFmpeg's log to ours, its allocation cap.
+void InstallFfmpegSettings() {
   static std::once_flag once;
-  std::call_once(once, [] { av_log_set_callback(FfmpegLogCallback); });
+  std::call_once(once, [] {
+    av_log_set_callback(FfmpegLogCallback);
+    av_max_alloc(kFfmpegMaxAllocationBytes);
+  });
 }
 
 bool IsImageFile(const fs::path& p) {
@@ -293,7 +304,7 @@ struct VideoReader::Impl {
   }
 
   void OpenFile(const std::string& file) {
-    InstallFfmpegLogging();
+    InstallFfmpegSettings();
     int r = avformat_open_input(&format, file.c_str(), nullptr, nullptr);
     ARREG_CHECK_INPUT(r >= 0, file, "", "cannot open video: ", AvErrorString(r));
     r = avformat_find_stream_info(format, nullptr);
@@ -576,7 +587,7 @@ void VideoWriter::Open(const std::string& path, int width, int height, double fp
   ARREG_CHECK_INPUT(width % align_x == 0 && height % align_y == 0, path, "", "frame size ", width,
                     "x", height, " must be a multiple of ", align_x, "x", align_y, " for ",
                     options.pixel_format);
-  InstallFfmpegLogging();
+  InstallFfmpegSettings();
   impl_ = std::make_unique<Impl>();
   Impl& d = *impl_;
   d.path = path;
