@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <optional>
 #include <regex>
 #include <set>
 #include <string>
@@ -68,8 +69,8 @@ bool OnPath(const std::string& name) {
 }
 
 // Why a source cannot make scenes here, "" when it can.
-std::string Unavailable(const std::string& source, const Settings& s) {
-  if (source != "phantom") return "";
+std::string Unavailable(eval::SceneSource source, const Settings& s) {
+  if (source != eval::SceneSource::kPhantom) return "";
   if (!IsExecutable(s.phantom_tool)) return s.phantom_tool + " is missing or not executable";
   if (!OnPath("blender")) return "blender is not installed (scripts/install-deps)";
   return "";
@@ -100,7 +101,7 @@ void RunTool(const std::vector<std::string>& args) {
 
 // Writes the scene into `dir` with its source's generator.
 void Generate(const eval::BenchScene& b, const Settings& s, const std::string& dir) {
-  if (b.source == "synth") {
+  if (b.source == eval::SceneSource::kSynth) {
     synth::SynthOptions o;
     o.scenario = b.scenario;
     o.out_dir = dir;
@@ -141,7 +142,7 @@ std::string EnsureScene(const eval::BenchScene& b, const Settings& s) {
     throw;
   }
   const nlohmann::json marker = {{"name", b.name},
-                                 {"source", b.source},
+                                 {"source", eval::SceneSourceName(b.source)},
                                  {"scenario", b.scenario},
                                  {"seed", b.seed},
                                  {"params", b.params.ToJson(b.source)}};
@@ -353,10 +354,19 @@ int RunBenchAccuracy(int argc, char** argv) {
       "of the per-frame Hausdorff means / worst frame, mm). Run from the repository root, or\n"
       "give --manifest, --cache and --phantom-tool. See docs/benchmark.md.");
   if (!parser.Parse(argc, argv)) return 0;
-  ARREG_CHECK_INPUT(split == "dev" || split == "test" || split == "all", "", "--split",
-                    "expected dev, test or all, got '", split, "'");
-  ARREG_CHECK_INPUT(source == "synth" || source == "phantom" || source == "all", "", "--source",
-                    "expected synth, phantom or all, got '", source, "'");
+  // "all" is no restriction.
+  std::optional<eval::BenchSplit> only_split;
+  if (split != "all") {
+    ARREG_CHECK_INPUT(split == "dev" || split == "test", "", "--split",
+                      "expected dev, test or all, got '", split, "'");
+    only_split = eval::ParseBenchSplit(split, "", "--split");
+  }
+  std::optional<eval::SceneSource> only_source;
+  if (source != "all") {
+    ARREG_CHECK_INPUT(source == "synth" || source == "phantom", "", "--source",
+                      "expected synth, phantom or all, got '", source, "'");
+    only_source = eval::ParseSceneSource(source, "", "--source");
+  }
   ARREG_CHECK_INPUT(jobs >= 1, "", "--jobs", "must be >= 1, got ", jobs);
   {
     // A bad --set fails here, once, not in every scene's worker.
@@ -377,8 +387,9 @@ int RunBenchAccuracy(int argc, char** argv) {
   std::vector<eval::BenchScene> scenes;
   for (const eval::BenchScene& b : eval::ReadBenchManifest(manifest)) {
     const bool split_ok =
-        quick ? b.split == "quick" : (b.split != "quick" && (split == "all" || b.split == split));
-    if (!split_ok || (source != "all" && b.source != source)) continue;
+        quick ? b.split == eval::BenchSplit::kQuick
+              : (b.split != eval::BenchSplit::kQuick && (!only_split || b.split == *only_split));
+    if (!split_ok || (only_source && b.source != *only_source)) continue;
     if (!only.empty() && !std::regex_search(b.name, pattern)) continue;
     scenes.push_back(b);
   }
@@ -408,13 +419,13 @@ int RunBenchAccuracy(int argc, char** argv) {
     std::printf("%s %s: %s\n", eval::SceneStatusName(r.status), r.name.c_str(), r.reason.c_str());
   }
   nlohmann::json acceptance = nlohmann::json::object();
-  std::set<std::string> splits;
+  std::set<eval::BenchSplit> splits;
   for (const eval::SceneResult& r : results) splits.insert(r.split);
-  for (const std::string& sp : splits) {
+  for (const eval::BenchSplit sp : splits) {
     std::vector<eval::SceneResult> in_split;
     for (const eval::SceneResult& r : results)
       if (r.split == sp) in_split.push_back(r);
-    std::printf("\nacceptance (issue 33) on the %s split:\n", sp.c_str());
+    std::printf("\nacceptance (issue 33) on the %s split:\n", eval::BenchSplitName(sp));
     nlohmann::json lines = nlohmann::json::array();
     for (const eval::Criterion& c : eval::AcceptanceCriteria(in_split)) {
       std::printf("  %-5s %s: %s\n",
@@ -424,7 +435,7 @@ int RunBenchAccuracy(int argc, char** argv) {
                   c.text.c_str(), c.measured.c_str());
       lines.push_back(c.ToJson());
     }
-    acceptance[sp] = lines;
+    acceptance[eval::BenchSplitName(sp)] = lines;
   }
   if (!json_path.empty()) {
     nlohmann::json j;

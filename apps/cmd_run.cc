@@ -140,19 +140,11 @@ int RunRun(int argc, char** argv) {
     options.mechanics.spring_stiffness_relative = stiffness_relative;
   if (parser.Given("substeps")) options.mechanics.substeps = substeps;
   if (parser.Given("output-spring-factor")) options.mechanics.output_spring_factor = output_factor;
-  if (parser.Given("lifting")) {
-    ARREG_CHECK_INPUT(lifting == "surface" || lifting == "plane", "", "--lifting",
-                      "expected surface or plane, got '", lifting, "'");
-    options.lifting.target =
-        lifting == "plane" ? lift::LiftTarget::kPlane : lift::LiftTarget::kSurface;
-  }
-  if (parser.Given("lift-update")) {
-    ARREG_CHECK_INPUT(lift_update == "intercept" || lift_update == "raycast", "", "--lift-update",
-                      "expected intercept or raycast, got '", lift_update, "'");
-    options.lifting.surface_update = lift_update == "raycast"
-                                         ? lift::SurfaceUpdate::kRayCastWithFallback
-                                         : lift::SurfaceUpdate::kInterceptTheorem;
-  }
+  if (parser.Given("lifting"))
+    options.lifting.target = ParseName(lift::kLiftTargetNames, lifting, "", "--lifting");
+  if (parser.Given("lift-update"))
+    options.lifting.surface_update =
+        ParseName(lift::kSurfaceUpdateNames, lift_update, "", "--lift-update");
   ARREG_CHECK_INPUT(save_every >= 0, "", "--save-every", "must be >= 1");
   options.Check();
 

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "core/enum_names.h"
+
 namespace arreg {
 
 // Parses a JSON file. Syntax errors throw arreg::Error naming the file, the line
@@ -116,6 +118,22 @@ class JsonObjectReader {
                       std::string* value);
   bool OptionalChoice(const std::string& key, const std::vector<std::string>& choices,
                       std::string* value);
+  // The same for an enum named by a table (core/enum_names.h).
+  template <typename E, std::size_t N>
+  bool OptionalEnum(const std::string& key, const EnumName<E> (&table)[N], E* value) {
+    std::vector<std::string> names;
+    names.reserve(N);
+    for (const EnumName<E>& e : table) names.emplace_back(e.name);
+    std::string name;
+    if (!OptionalChoice(key, names, &name)) return false;
+    *value = *FindName(table, name);
+    return true;
+  }
+  template <typename E, std::size_t N>
+  void RequiredEnum(const std::string& key, const EnumName<E> (&table)[N], E* value) {
+    Find(key, /*required=*/true);
+    OptionalEnum(key, table, value);
+  }
 
   // Nested objects: the child reader's path is "path.key". Its own Finish() is
   // the caller's job.

@@ -13,23 +13,11 @@ namespace arreg {
 namespace fs = std::filesystem;
 
 const char* ThinStructureTypeName(ThinStructureType type) {
-  switch (type) {
-    case ThinStructureType::kShell:
-      return "shell";
-    case ThinStructureType::kVessel:
-      return "vessel";
-  }
-  return "?";
+  return NameOf(kThinStructureTypeNames, type);
 }
 
 const char* ThinAttachmentName(ThinAttachment attachment) {
-  switch (attachment) {
-    case ThinAttachment::kNone:
-      return "none";
-    case ThinAttachment::kModel:
-      return "model";
-  }
-  return "?";
+  return NameOf(kThinAttachmentNames, attachment);
 }
 
 namespace {
@@ -116,9 +104,7 @@ ThinStructure ReadThinStructure(JsonObjectReader& r, const Scene& scene, bool ch
   ThinStructure t;
   r.Required("name", &t.name);
   if (t.name.empty()) r.Fail("name", "must not be empty");
-  std::string type;
-  r.RequiredChoice("type", {"shell", "vessel"}, &type);
-  t.type = type == "shell" ? ThinStructureType::kShell : ThinStructureType::kVessel;
+  r.RequiredEnum("type", kThinStructureTypeNames, &t.type);
   if (t.type == ThinStructureType::kShell) {
     RejectKeys(r, {"centreline", "radius_mm"}, "shell");
     t.mesh_path = ReadPath(r, "mesh", scene, true, check, PathKind::kFile);
@@ -143,9 +129,7 @@ ThinStructure ReadThinStructure(JsonObjectReader& r, const Scene& scene, bool ch
     if (!fixed.insert(v).second)
       r.Fail("fixed_vertices", "vertex " + std::to_string(v) + " is listed twice");
   }
-  std::string attach = ThinAttachmentName(t.attach);
-  r.OptionalChoice("attach", {"none", "model"}, &attach);
-  t.attach = attach == "model" ? ThinAttachment::kModel : ThinAttachment::kNone;
+  r.OptionalEnum("attach", kThinAttachmentNames, &t.attach);
   r.Optional("attach_distance_mm", &t.attach_distance_mm);
   r.CheckNonNegative("attach_distance_mm", t.attach_distance_mm);
   if (!std::isfinite(t.attach_distance_mm)) r.Fail("attach_distance_mm", "must be finite");
@@ -202,9 +186,7 @@ Scene ParseScene(const nlohmann::json& json, const std::string& path,
   const bool check = options.check_files_exist;
 
   JsonObjectReader root(json, path, "");
-  std::string units = "mm";
-  if (root.OptionalChoice("units", {"mm", "m"}, &units)) {
-    scene.units = units == "m" ? LengthUnit::kMetre : LengthUnit::kMillimetre;
+  if (root.OptionalEnum("units", kLengthUnitNames, &scene.units)) {
     scene.mm_per_unit = scene.units == LengthUnit::kMetre ? 1000.0 : 1.0;
   }
   root.Optional("description", &scene.description);
@@ -331,7 +313,7 @@ Scene ReadScene(const std::string& path, const ReadSceneOptions& options) {
 
 nlohmann::json SceneToJson(const Scene& scene, const std::string& directory) {
   nlohmann::json j;
-  j["units"] = scene.units == LengthUnit::kMetre ? "m" : "mm";
+  j["units"] = NameOf(kLengthUnitNames, scene.units);
   if (!scene.description.empty()) j["description"] = scene.description;
   const bool identity = scene.world_from_model.matrix() == Eigen::Matrix4d::Identity();
   if (!scene.model_mesh_path.empty()) {

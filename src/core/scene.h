@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/camera.h"
+#include "core/enum_names.h"
 
 namespace arreg {
 
@@ -36,10 +37,14 @@ struct InternalStructure {
 // centreline tree with a radius, src/mechanics/vessel.h). docs/scene-format.md.
 enum class ThinStructureType { kShell, kVessel };
 // The spelling in scene files: "shell", "vessel".
+inline constexpr EnumName<ThinStructureType> kThinStructureTypeNames[] = {
+    {ThinStructureType::kShell, "shell"}, {ThinStructureType::kVessel, "vessel"}};
 const char* ThinStructureTypeName(ThinStructureType type);
 // kModel: tied to the tet model by proximity.
 enum class ThinAttachment { kNone, kModel };
 // The spelling in scene files: "none", "model".
+inline constexpr EnumName<ThinAttachment> kThinAttachmentNames[] = {
+    {ThinAttachment::kNone, "none"}, {ThinAttachment::kModel, "model"}};
 const char* ThinAttachmentName(ThinAttachment attachment);
 
 struct ThinStructure {
@@ -60,6 +65,8 @@ struct ThinStructure {
 
 // Unit of the coordinates in a scene's mesh files; "mm" and "m" in scene files.
 enum class LengthUnit { kMillimetre, kMetre };
+inline constexpr EnumName<LengthUnit> kLengthUnitNames[] = {{LengthUnit::kMillimetre, "mm"},
+                                                            {LengthUnit::kMetre, "m"}};
 
 struct Scene {
   std::string path;       // the scene file as given to ReadScene ("" for in-memory scenes)

@@ -11,6 +11,7 @@
 #include <unordered_set>
 #include <vector>
 
+#include "core/enum_names.h"
 #include "core/mesh.h"
 #include "cutting/separation_test.h"
 
@@ -24,6 +25,9 @@ enum class CutMeasure {
   // mu2 = delta^1 / delta^0: image targets only; independent of the model ([82]).
   kImageOnly,
 };
+// The spelling in scene files and records: "model", "image".
+inline constexpr EnumName<CutMeasure> kCutMeasureNames[] = {
+    {CutMeasure::kModelRegularised, "model"}, {CutMeasure::kImageOnly, "image"}};
 
 // What decides that a cluster of outliers (or a growing cut's tip) is a separation.
 enum class CutDecision {
@@ -40,6 +44,9 @@ enum class CutDecision {
   // closing_window_frames, and the probe's pair outliers).
   kRules,
 };
+// The spelling in scene files and records: "separation-test", "rules".
+inline constexpr EnumName<CutDecision> kCutDecisionNames[] = {
+    {CutDecision::kSeparationTest, "separation-test"}, {CutDecision::kRules, "rules"}};
 
 // Thesis defaults are those of the kidney 1 experiment (thesis 7.7 / DESIGN.md section 4), with
 // the lengths rescaled to the features' spacing by default (neighbours_per_feature).

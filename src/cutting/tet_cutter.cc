@@ -18,21 +18,11 @@ using cut_internal::kEdgeLocal;
 using cut_internal::kFaceOrder;
 using cut_internal::Tet;
 
-const char* RemeshMethodName(RemeshMethod method) {
-  switch (method) {
-    case RemeshMethod::kFlips:
-      return "flips";
-    case RemeshMethod::kBielser:
-      return "bielser";
-  }
-  return "?";
-}
+const char* RemeshMethodName(RemeshMethod method) { return NameOf(kRemeshMethodNames, method); }
 
 RemeshMethod ParseRemeshMethod(const std::string& name, const std::string& file,
                                const std::string& field) {
-  if (name == "flips") return RemeshMethod::kFlips;
-  if (name == "bielser") return RemeshMethod::kBielser;
-  throw Error(file, field, "must be \"flips\" or \"bielser\", got \"" + name + "\"");
+  return ParseName(kRemeshMethodNames, name, file, field);
 }
 
 void CutOptions::Check() const {

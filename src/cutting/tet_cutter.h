@@ -9,6 +9,7 @@
 #include <unordered_set>
 #include <vector>
 
+#include "core/enum_names.h"
 #include "core/mesh.h"
 #include "cutting/cut_surface.h"
 
@@ -29,6 +30,8 @@ enum class RemeshMethod {
   kBielser,
 };
 // The spelling in scene files and records: "flips", "bielser".
+inline constexpr EnumName<RemeshMethod> kRemeshMethodNames[] = {
+    {RemeshMethod::kFlips, "flips"}, {RemeshMethod::kBielser, "bielser"}};
 const char* RemeshMethodName(RemeshMethod method);
 // Inverse of RemeshMethodName; throws arreg::Error naming `file` and `field` for any other name.
 RemeshMethod ParseRemeshMethod(const std::string& name, const std::string& file,

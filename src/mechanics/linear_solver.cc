@@ -13,39 +13,19 @@
 namespace arreg::mechanics {
 
 LinearSolverType ParseLinearSolverType(const std::string& name) {
-  if (name == "cg") return LinearSolverType::kConjugateGradient;
-  if (name == "cholmod") return LinearSolverType::kCholmod;
-  if (name == "cholmod-pcg") return LinearSolverType::kCholmodPcg;
-  throw Error("", "linear solver", "unknown '" + name + "' (expected cg, cholmod or cholmod-pcg)");
+  return ParseName(kLinearSolverTypeNames, name, "", "linear solver");
 }
 
 const char* LinearSolverTypeName(LinearSolverType type) {
-  switch (type) {
-    case LinearSolverType::kConjugateGradient:
-      return "cg";
-    case LinearSolverType::kCholmod:
-      return "cholmod";
-    case LinearSolverType::kCholmodPcg:
-      return "cholmod-pcg";
-  }
-  return "?";
+  return NameOf(kLinearSolverTypeNames, type);
 }
 
 Preconditioner ParsePreconditioner(const std::string& name) {
-  if (name == "none") return Preconditioner::kNone;
-  if (name == "jacobi") return Preconditioner::kJacobi;
-  if (name == "block-jacobi") return Preconditioner::kBlockJacobi;
-  if (name == "ichol") return Preconditioner::kIncompleteCholesky;
-  throw Error("", "preconditioner",
-              "unknown '" + name + "' (expected none, jacobi, block-jacobi or ichol)");
+  return ParseName(kPreconditionerNames, name, "", "preconditioner");
 }
 
 CholmodFactorization ParseCholmodFactorization(const std::string& name) {
-  if (name == "supernodal") return CholmodFactorization::kSupernodal;
-  if (name == "simplicial") return CholmodFactorization::kSimplicial;
-  if (name == "auto") return CholmodFactorization::kAuto;
-  throw Error("", "CHOLMOD factorization",
-              "unknown '" + name + "' (expected supernodal, simplicial or auto)");
+  return ParseName(kCholmodFactorizationNames, name, "", "CHOLMOD factorization");
 }
 
 const char* LinearSolverStatusName(LinearSolverStatus status) {

@@ -6,6 +6,7 @@
 #include <memory>
 #include <string>
 
+#include "core/enum_names.h"
 #include "mechanics/system_matrix.h"
 
 namespace arreg::mechanics {
@@ -22,11 +23,25 @@ enum class Preconditioner {
 };
 enum class CholmodFactorization { kSupernodal, kSimplicial, kAuto };
 
-LinearSolverType ParseLinearSolverType(const std::string& name);  // "cg", "cholmod", "cholmod-pcg"
+// The spellings in scene files, options and records.
+inline constexpr EnumName<LinearSolverType> kLinearSolverTypeNames[] = {
+    {LinearSolverType::kCholmodPcg, "cholmod-pcg"},
+    {LinearSolverType::kCholmod, "cholmod"},
+    {LinearSolverType::kConjugateGradient, "cg"}};
+inline constexpr EnumName<Preconditioner> kPreconditionerNames[] = {
+    {Preconditioner::kNone, "none"},
+    {Preconditioner::kJacobi, "jacobi"},
+    {Preconditioner::kBlockJacobi, "block-jacobi"},
+    {Preconditioner::kIncompleteCholesky, "ichol"}};
+inline constexpr EnumName<CholmodFactorization> kCholmodFactorizationNames[] = {
+    {CholmodFactorization::kSupernodal, "supernodal"},
+    {CholmodFactorization::kSimplicial, "simplicial"},
+    {CholmodFactorization::kAuto, "auto"}};
+
+// Name and inverse; the parsers throw arreg::Error naming the choice for any other name.
+LinearSolverType ParseLinearSolverType(const std::string& name);
 const char* LinearSolverTypeName(LinearSolverType type);
-// "none", "jacobi", "block-jacobi", "ichol"
 Preconditioner ParsePreconditioner(const std::string& name);
-// "supernodal", "simplicial", "auto"
 CholmodFactorization ParseCholmodFactorization(const std::string& name);
 
 struct LinearSolverOptions {

@@ -34,22 +34,11 @@ double Material::LameMuKpa() const {
 double Material::DensityKgPerMm3() const { return density_kg_per_m3 * kKgPerM3ToInternalDensity; }
 
 RotationMethod ParseRotationMethod(const std::string& name) {
-  if (name == "polar") return RotationMethod::kPolar;
-  if (name == "polar-svd") return RotationMethod::kPolarSvd;
-  if (name == "qr") return RotationMethod::kQr;
-  throw Error("", "rotation method", "unknown '" + name + "' (expected polar, polar-svd or qr)");
+  return ParseName(kRotationMethodNames, name, "", "rotation method");
 }
 
 const char* RotationMethodName(RotationMethod method) {
-  switch (method) {
-    case RotationMethod::kPolar:
-      return "polar";
-    case RotationMethod::kPolarSvd:
-      return "polar-svd";
-    case RotationMethod::kQr:
-      return "qr";
-  }
-  return "?";
+  return NameOf(kRotationMethodNames, method);
 }
 
 bool ComputeTetRestData(const Eigen::Vector3d& x0, const Eigen::Vector3d& x1,
@@ -81,7 +70,7 @@ namespace {
 void PolarSvd(const Eigen::Matrix3d& F, Eigen::Matrix3d* rotation) {
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
   Eigen::Matrix3d U = svd.matrixU();
-  const Eigen::Matrix3d V = svd.matrixV();
+  const Eigen::Matrix3d& V = svd.matrixV();
   // Keep a proper rotation for inverted elements: flip the axis of the
   // smallest singular value (Irving et al. 2004).
   if ((U * V.transpose()).determinant() < 0.0) U.col(2) *= -1.0;
@@ -259,14 +248,10 @@ Eigen::Matrix3d CorotatedStrainOfF(const Eigen::Matrix3d& R, const Eigen::Matrix
 }  // namespace
 
 VolumeTerm ParseVolumeTerm(const std::string& name) {
-  if (name == "linear") return VolumeTerm::kLinear;
-  if (name == "jacobian") return VolumeTerm::kJacobian;
-  throw Error("", "volume term", "unknown '" + name + "' (expected linear or jacobian)");
+  return ParseName(kVolumeTermNames, name, "", "volume term");
 }
 
-const char* VolumeTermName(VolumeTerm term) {
-  return term == VolumeTerm::kJacobian ? "jacobian" : "linear";
-}
+const char* VolumeTermName(VolumeTerm term) { return NameOf(kVolumeTermNames, term); }
 
 Eigen::Matrix3d Cofactor(const Eigen::Matrix3d& F) {
   Eigen::Matrix3d c;
@@ -305,9 +290,10 @@ void AddCorotationalGradient(const TetRestData& rest, const Eigen::Matrix3d& R,
 
 Eigen::Matrix<double, 12, 12> RestStiffnessMatrix(const TetRestData& rest) {
   Eigen::Matrix<double, 12, 12> k;
-  for (int a = 0; a < 4; ++a)
-    for (int b = 0; b < 4; ++b)
-      k.block<3, 3>(3 * a, 3 * b) = WarpedStiffnessBlock(rest, rest.shape_gradients, a, b);
+  for (Eigen::Index a = 0; a < 4; ++a)
+    for (Eigen::Index b = 0; b < 4; ++b)
+      k.block<3, 3>(3 * a, 3 * b) = WarpedStiffnessBlock(rest, rest.shape_gradients,
+                                                         static_cast<int>(a), static_cast<int>(b));
   return k;
 }
 

@@ -6,6 +6,8 @@
 #include <Eigen/Geometry>
 #include <string>
 
+#include "core/enum_names.h"
+
 namespace arreg::mechanics {
 
 // Isotropic linear-elastic material of one element (SI units at the interface).
@@ -38,7 +40,11 @@ enum class RotationMethod {
   // the exact gradient of the energy.
   kQr,
 };
-RotationMethod ParseRotationMethod(const std::string& name);  // "polar", "polar-svd", "qr"
+inline constexpr EnumName<RotationMethod> kRotationMethodNames[] = {
+    {RotationMethod::kPolar, "polar"},
+    {RotationMethod::kPolarSvd, "polar-svd"},
+    {RotationMethod::kQr, "qr"}};
+RotationMethod ParseRotationMethod(const std::string& name);
 
 // The volumetric part of the element energy V lambda/2 psi.
 enum class VolumeTerm {
@@ -52,7 +58,9 @@ enum class VolumeTerm {
   // at rest; under large stretch it keeps the volume as the material's nu says.
   kJacobian,
 };
-VolumeTerm ParseVolumeTerm(const std::string& name);  // "linear", "jacobian"
+inline constexpr EnumName<VolumeTerm> kVolumeTermNames[] = {{VolumeTerm::kJacobian, "jacobian"},
+                                                            {VolumeTerm::kLinear, "linear"}};
+VolumeTerm ParseVolumeTerm(const std::string& name);
 const char* VolumeTermName(VolumeTerm term);
 const char* RotationMethodName(RotationMethod method);
 

@@ -17,13 +17,7 @@ constexpr float kCoarseEpsilonPx = 0.1f;
 }  // namespace
 
 const char* LucasKanadeBackendName(LucasKanadeBackend backend) {
-  switch (backend) {
-    case LucasKanadeBackend::kArreg:
-      return "arreg";
-    case LucasKanadeBackend::kOpenCv:
-      return "opencv";
-  }
-  return "unknown";
+  return NameOf(kLucasKanadeBackendNames, backend);
 }
 
 void LucasKanadeOptions::Check() const {

@@ -8,6 +8,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "core/enum_names.h"
+
 namespace arreg {
 
 // Which implementation follows the points.
@@ -22,6 +24,9 @@ enum class LucasKanadeBackend : uint8_t {
   // (lk_500_opencv_ms 12-20 ms), positions within 0.02 px of ours (median).
   kOpenCv = 1,
 };
+// The spelling in scene files and records: "arreg", "opencv".
+inline constexpr EnumName<LucasKanadeBackend> kLucasKanadeBackendNames[] = {
+    {LucasKanadeBackend::kArreg, "arreg"}, {LucasKanadeBackend::kOpenCv, "opencv"}};
 const char* LucasKanadeBackendName(LucasKanadeBackend backend);
 
 struct LucasKanadeOptions {

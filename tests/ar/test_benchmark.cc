@@ -68,13 +68,12 @@ TEST(BenchMetrics, FirstFrameOfAnOpening) {
   EXPECT_FALSE(FirstFrameAtLeast({}, 2.0).has_value());
 }
 
-SceneResult Result(const std::string& name, const std::string& scenario,
-                   const std::string& scene_class) {
+SceneResult Result(const std::string& name, const std::string& scenario, SceneClass scene_class) {
   BenchScene b;
   b.name = name;
-  b.source = "synth";
+  b.source = SceneSource::kSynth;
   b.scenario = scenario;
-  b.split = "dev";
+  b.split = BenchSplit::kDev;
   b.scene_class = scene_class;
   return SceneResult::For(b);
 }
@@ -88,7 +87,7 @@ TEST(BenchMetrics, CutsAreFoundOrMisplacedAndTheLatencyCountsFromTheOpening) {
       {6, {{-20, 0, 20}, {20, 0, 20}}},  // 20 mm off: misplaced
       {7, {{-20, 0, 1}, {20, 0, 1}}},    // 1 mm off: found
   };
-  SceneResult r = Result("a", "band-cut-v", "cut");
+  SceneResult r = Result("a", "band-cut-v", SceneClass::kCut);
   ScoreCuts(applied, truth, BenchMetricsOptions(), &r);
   EXPECT_EQ(r.applied_cuts, 2);
   EXPECT_EQ(r.found_cuts, 1);
@@ -101,18 +100,18 @@ TEST(BenchMetrics, CutsAreFoundOrMisplacedAndTheLatencyCountsFromTheOpening) {
 
   // Ground truth without the per-frame opening: no latency.
   truth.opening_mm.reset();
-  SceneResult old = Result("b", "band-cut-v", "cut");
+  SceneResult old = Result("b", "band-cut-v", SceneClass::kCut);
   ScoreCuts(applied, truth, BenchMetricsOptions(), &old);
   EXPECT_FALSE(old.latency_frames.has_value());
   EXPECT_TRUE(old.cut_found);
 
   // A cut scene whose ground truth has no cut, and the reverse, are errors.
   TrueCut none;
-  SceneResult wrong = Result("c", "band-cut-v", "cut");
+  SceneResult wrong = Result("c", "band-cut-v", SceneClass::kCut);
   EXPECT_NE(
       ErrorOf([&] { ScoreCuts(applied, none, BenchMetricsOptions(), &wrong); }).find("class cut"),
       std::string::npos);
-  SceneResult stretch = Result("d", "band-stretch", "stretch");
+  SceneResult stretch = Result("d", "band-stretch", SceneClass::kStretch);
   EXPECT_THROW(ScoreCuts(applied, truth, BenchMetricsOptions(), &stretch), Error);
   ScoreCuts(applied, none, BenchMetricsOptions(), &stretch);
   EXPECT_EQ(stretch.misplaced_cuts, 2);  // every cut on a no-cut scene is false
@@ -140,12 +139,38 @@ TEST(BenchResult, StatusRoundTripsThroughJsonAndABadOneNamesTheFile) {
   }
 }
 
+TEST(BenchResult, SourceSplitAndClassRoundTripThroughJson) {
+  SceneResult r;
+  r.name = "p";
+  r.source = SceneSource::kPhantom;
+  r.split = BenchSplit::kTest;
+  r.scene_class = SceneClass::kNoCut;
+  const nlohmann::json j = r.ToJson();
+  EXPECT_EQ(j.at("source"), "phantom");
+  EXPECT_EQ(j.at("split"), "test");
+  EXPECT_EQ(j.at("class"), "no-cut");
+  const SceneResult back = SceneResult::FromJson(j, "result.json");
+  EXPECT_EQ(back.source, SceneSource::kPhantom);
+  EXPECT_EQ(back.split, BenchSplit::kTest);
+  EXPECT_EQ(back.scene_class, SceneClass::kNoCut);
+  nlohmann::json bad = j;
+  bad["split"] = "train";
+  EXPECT_NE(ErrorOf([&] {
+              SceneResult::FromJson(bad, "result.json");
+            }).find("result.json: split: must be dev, test or quick, got 'train'"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf([] {
+              ParseSceneSource("blender", "m.json", "source");
+            }).find("must be synth or phantom"),
+            std::string::npos);
+}
+
 TEST(BenchAggregation, RatesMediansAndRatiosOverScenes) {
   std::vector<SceneResult> results;
   const double with[3] = {0.97, 0.95, 0.90}, without[3] = {0.91, 0.85, 0.90};
   const int latency[3] = {2, 6, 3};
   for (int k = 0; k < 3; ++k) {
-    SceneResult r = Result("cut" + std::to_string(k), "band-cut-v", "cut");
+    SceneResult r = Result("cut" + std::to_string(k), "band-cut-v", SceneClass::kCut);
     r.cut_found = k < 2;
     r.applied_cuts = 1;
     r.found_cuts = k < 2;
@@ -159,11 +184,11 @@ TEST(BenchAggregation, RatesMediansAndRatiosOverScenes) {
     r.surface_worst_mm = 2.0 + k;
     results.push_back(r);
   }
-  SceneResult failed = Result("cut3", "band-cut-v", "cut");
+  SceneResult failed = Result("cut3", "band-cut-v", SceneClass::kCut);
   failed.status = SceneStatus::kFailed;
   results.push_back(failed);
   for (int k = 0; k < 4; ++k) {
-    SceneResult r = Result("stretch" + std::to_string(k), "band-stretch", "stretch");
+    SceneResult r = Result("stretch" + std::to_string(k), "band-stretch", SceneClass::kStretch);
     r.applied_cuts = r.misplaced_cuts = k == 0 ? 3 : 0;
     r.dice_final = r.dice_final_no_topology = 0.99;
     results.push_back(r);
@@ -212,7 +237,7 @@ TEST(BenchAggregation, RatesMediansAndRatiosOverScenes) {
 TEST(BenchAcceptance, PassesWhenEveryBoundHoldsAndSaysWhenNothingMeasuresALine) {
   std::vector<SceneResult> results;
   for (int k = 0; k < 20; ++k) {
-    SceneResult r = Result("c" + std::to_string(k), "band-precut-side", "cut");
+    SceneResult r = Result("c" + std::to_string(k), "band-precut-side", SceneClass::kCut);
     r.cut_found = true;
     r.applied_cuts = r.found_cuts = 1;
     r.cut_line_error_mm = 2.0;
@@ -267,7 +292,7 @@ TEST(BenchManifest, ErrorsNameTheField) {
                 .find("m.json: scenes[0].split"),
             std::string::npos);
   EXPECT_NE(error(head + R"("seed": 1, "split": "dev", "class": "cuts", )" + params + "}")
-                .find("scenes[0].class"),
+                .find(R"(scenes[0].class: "cuts" is not one of "cut", "no-cut", "stretch")"),
             std::string::npos);
   EXPECT_NE(error(head + R"("seed": 1, "split": "dev", "class": "stretch", "params":
                   {"frames": 30, "size": "321x256"}})")
@@ -302,10 +327,10 @@ TEST(BenchManifest, TheCommittedManifestReadsAndHasBothSplitsAndTheQuickSubset) 
   int dev = 0, test = 0, quick = 0;
   std::set<int> dev_seeds, test_seeds;
   for (const BenchScene& s : scenes) {
-    dev += s.split == "dev";
-    test += s.split == "test";
-    quick += s.split == "quick";
-    (s.split == "dev" ? dev_seeds : test_seeds).insert(s.seed);
+    dev += s.split == BenchSplit::kDev;
+    test += s.split == BenchSplit::kTest;
+    quick += s.split == BenchSplit::kQuick;
+    (s.split == BenchSplit::kDev ? dev_seeds : test_seeds).insert(s.seed);
   }
   EXPECT_GE(dev, 25);
   EXPECT_GE(test, 25);

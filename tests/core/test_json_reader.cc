@@ -341,5 +341,35 @@ TEST(ParseJson, CorruptedCameraJsonOnlyEverThrowsArregError) {
   }
 }
 
+enum class Fruit { kApple, kPear, kFig };
+constexpr EnumName<Fruit> kFruitNames[] = {
+    {Fruit::kApple, "apple"}, {Fruit::kPear, "pear"}, {Fruit::kFig, "fig"}};
+
+TEST(EnumNames, NamesAndValuesRoundTripAndOthersAreErrorsListingTheNames) {
+  for (const EnumName<Fruit>& e : kFruitNames) {
+    EXPECT_STREQ(NameOf(kFruitNames, e.value), e.name);
+    EXPECT_EQ(FindName(kFruitNames, e.name), e.value);
+  }
+  EXPECT_STREQ(NameOf(kFruitNames, static_cast<Fruit>(7)), "?");
+  EXPECT_FALSE(FindName(kFruitNames, "Apple").has_value());  // names are exact
+  EXPECT_EQ(NameList(kFruitNames), "apple, pear or fig");
+  EXPECT_EQ(ErrorMessage([] { ParseName(kFruitNames, "plum", "f.json", "fruit"); }),
+            "f.json: fruit: must be apple, pear or fig, got 'plum'");
+}
+
+TEST(JsonObjectReader, EnumMembersAreReadByTheirTable) {
+  const json j = json::parse(R"({"a": "pear", "b": "plum"})");
+  JsonObjectReader r(j, "f.json", "basket");
+  Fruit fruit = Fruit::kApple;
+  r.RequiredEnum("a", kFruitNames, &fruit);
+  EXPECT_EQ(fruit, Fruit::kPear);
+  EXPECT_FALSE(r.OptionalEnum("c", kFruitNames, &fruit));
+  EXPECT_EQ(fruit, Fruit::kPear);
+  EXPECT_EQ(ErrorMessage([&] { r.OptionalEnum("b", kFruitNames, &fruit); }),
+            "f.json: basket.b: \"plum\" is not one of \"apple\", \"pear\", \"fig\"");
+  EXPECT_NE(ErrorMessage([&] { r.RequiredEnum("c", kFruitNames, &fruit); }).find("basket.c"),
+            std::string::npos);
+}
+
 }  // namespace
 }  // namespace arreg

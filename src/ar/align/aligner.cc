@@ -35,22 +35,10 @@ std::vector<Landmark> ReadLandmarks(const std::string& path) {
   return landmarks;
 }
 
-const char* RobustLossName(RobustLoss loss) {
-  switch (loss) {
-    case RobustLoss::kHuber:
-      return "huber";
-    case RobustLoss::kCauchy:
-      return "cauchy";
-    case RobustLoss::kNone:
-      return "none";
-  }
-  return "?";
-}
+const char* RobustLossName(RobustLoss loss) { return NameOf(kRobustLossNames, loss); }
 
 RobustLoss ParseRobustLoss(const std::string& name, const std::string& field) {
-  for (RobustLoss loss : {RobustLoss::kHuber, RobustLoss::kCauchy, RobustLoss::kNone})
-    if (name == RobustLossName(loss)) return loss;
-  throw Error("", field, "must be huber, cauchy or none, got '" + name + "'");
+  return ParseName(kRobustLossNames, name, "", field);
 }
 
 void AlignOptions::Check() const {

@@ -11,6 +11,7 @@
 
 #include "ar/align/silhouette.h"
 #include "core/camera.h"
+#include "core/enum_names.h"
 
 namespace arreg::align {
 
@@ -26,6 +27,8 @@ std::vector<Landmark> ReadLandmarks(const std::string& path);
 
 // Robust loss on the residuals (px): Huber, Cauchy, or none (least squares).
 enum class RobustLoss { kHuber, kCauchy, kNone };
+inline constexpr EnumName<RobustLoss> kRobustLossNames[] = {
+    {RobustLoss::kHuber, "huber"}, {RobustLoss::kCauchy, "cauchy"}, {RobustLoss::kNone, "none"}};
 // The spelling on the command line and in summaries: "huber", "cauchy", "none".
 const char* RobustLossName(RobustLoss loss);
 // Inverse of RobustLossName; throws arreg::Error naming `field` for any other name.

@@ -96,7 +96,7 @@ nlohmann::json DetectorJson(const cutting::CutDetectorOptions& d) {
           {"min_outliers", d.min_outliers},
           {"cut_point_radius_mm", d.cut_point_radius_mm},
           {"min_outlier_measure_mm", d.min_outlier_measure_mm},
-          {"measure", d.measure == cutting::CutMeasure::kModelRegularised ? "model" : "image"}};
+          {"measure", NameOf(cutting::kCutMeasureNames, d.measure)}};
 }
 
 void WriteJson(const std::string& path, const nlohmann::json& j) {

@@ -9,6 +9,7 @@
 #include <set>
 #include <sstream>
 
+#include "core/enum_names.h"
 #include "core/error.h"
 #include "core/file_util.h"
 #include "core/json_reader.h"
@@ -17,6 +18,15 @@
 namespace arreg::eval {
 
 namespace {
+
+constexpr EnumName<SceneSource> kSceneSourceNames[] = {{SceneSource::kSynth, "synth"},
+                                                       {SceneSource::kPhantom, "phantom"}};
+constexpr EnumName<BenchSplit> kBenchSplitNames[] = {
+    {BenchSplit::kDev, "dev"}, {BenchSplit::kTest, "test"}, {BenchSplit::kQuick, "quick"}};
+constexpr EnumName<SceneClass> kSceneClassNames[] = {
+    {SceneClass::kCut, "cut"}, {SceneClass::kNoCut, "no-cut"}, {SceneClass::kStretch, "stretch"}};
+constexpr EnumName<SceneStatus> kSceneStatusNames[] = {
+    {SceneStatus::kOk, "ok"}, {SceneStatus::kSkipped, "skipped"}, {SceneStatus::kFailed, "failed"}};
 
 // Names end up in folder names: letters, digits, '.', '_' and '-' only.
 bool IsSafeName(const std::string& s) {
@@ -27,7 +37,7 @@ bool IsSafeName(const std::string& s) {
   return true;
 }
 
-BenchSceneParams ReadParams(JsonObjectReader r, const std::string& source) {
+BenchSceneParams ReadParams(JsonObjectReader r, SceneSource source) {
   BenchSceneParams p;
   r.Required("frames", &p.frames);
   if (p.frames < 2) r.Fail("frames", "must be >= 2, got " + std::to_string(p.frames));
@@ -37,7 +47,7 @@ BenchSceneParams ReadParams(JsonObjectReader r, const std::string& source) {
   if (std::sscanf(size.c_str(), "%dx%d%c", &p.width, &p.height, &extra) != 2 || p.width <= 0 ||
       p.height <= 0 || p.width % 2 || p.height % 2)
     r.Fail("size", "expected WxH with even positive numbers, got '" + size + "'");
-  if (source == "synth") {
+  if (source == SceneSource::kSynth) {
     r.Optional("zoom", &p.zoom);
     r.CheckInRange("zoom", p.zoom, 0.5, 4.0);
     r.Optional("amplitude", &p.amplitude);
@@ -126,10 +136,27 @@ struct Group {
 
 }  // namespace
 
-nlohmann::json BenchSceneParams::ToJson(const std::string& source) const {
+const char* SceneSourceName(SceneSource source) { return NameOf(kSceneSourceNames, source); }
+const char* BenchSplitName(BenchSplit split) { return NameOf(kBenchSplitNames, split); }
+const char* SceneClassName(SceneClass scene_class) { return NameOf(kSceneClassNames, scene_class); }
+
+SceneSource ParseSceneSource(const std::string& name, const std::string& file,
+                             const std::string& field) {
+  return ParseName(kSceneSourceNames, name, file, field);
+}
+BenchSplit ParseBenchSplit(const std::string& name, const std::string& file,
+                           const std::string& field) {
+  return ParseName(kBenchSplitNames, name, file, field);
+}
+SceneClass ParseSceneClass(const std::string& name, const std::string& file,
+                           const std::string& field) {
+  return ParseName(kSceneClassNames, name, file, field);
+}
+
+nlohmann::json BenchSceneParams::ToJson(SceneSource source) const {
   nlohmann::json j = {{"frames", frames},
                       {"size", std::to_string(width) + "x" + std::to_string(height)}};
-  if (source == "synth") {
+  if (source == SceneSource::kSynth) {
     j["zoom"] = zoom;
     j["amplitude"] = amplitude;
     j["noise"] = noise;
@@ -140,14 +167,14 @@ nlohmann::json BenchSceneParams::ToJson(const std::string& source) const {
 }
 
 std::string BenchScene::CacheKey() const {
-  const nlohmann::json key = {{"source", source},
+  const nlohmann::json key = {{"source", SceneSourceName(source)},
                               {"scenario", scenario},
                               {"seed", seed},
                               {"params", params.ToJson(source)}};
   char hash[20];
   std::snprintf(hash, sizeof(hash), "%012llx",
                 static_cast<unsigned long long>(Fnv1a(key.dump()) & 0xffffffffffffULL));
-  return source + "-" + scenario + "-s" + std::to_string(seed) + "-" + hash;
+  return SceneSourceName(source) + ("-" + scenario) + "-s" + std::to_string(seed) + "-" + hash;
 }
 
 std::vector<BenchScene> ParseBenchManifest(const nlohmann::json& json, const std::string& file) {
@@ -163,12 +190,12 @@ std::vector<BenchScene> ParseBenchManifest(const nlohmann::json& json, const std
     r.Required("name", &base.name);
     if (!IsSafeName(base.name))
       r.Fail("name", "letters, digits, '.', '_' and '-' only, got '" + base.name + "'");
-    r.RequiredChoice("source", {"synth", "phantom"}, &base.source);
+    r.RequiredEnum("source", kSceneSourceNames, &base.source);
     r.Required("scenario", &base.scenario);
     if (!IsSafeName(base.scenario))
       r.Fail("scenario", "letters, digits, '.', '_' and '-' only, got '" + base.scenario + "'");
-    r.RequiredChoice("split", {"dev", "test", "quick"}, &base.split);
-    r.RequiredChoice("class", {"cut", "no-cut", "stretch"}, &base.scene_class);
+    r.RequiredEnum("split", kBenchSplitNames, &base.split);
+    r.RequiredEnum("class", kSceneClassNames, &base.scene_class);
     base.params = ReadParams(r.Object("params"), base.source);
     r.Ignore("note");
     std::vector<int> seeds;
@@ -300,30 +327,18 @@ SceneResult SceneResult::For(const BenchScene& scene) {
   return r;
 }
 
-const char* SceneStatusName(SceneStatus status) {
-  switch (status) {
-    case SceneStatus::kOk:
-      return "ok";
-    case SceneStatus::kSkipped:
-      return "skipped";
-    case SceneStatus::kFailed:
-      return "failed";
-  }
-  return "?";
-}
+const char* SceneStatusName(SceneStatus status) { return NameOf(kSceneStatusNames, status); }
 
 SceneStatus ParseSceneStatus(const std::string& name, const std::string& field) {
-  for (SceneStatus s : {SceneStatus::kOk, SceneStatus::kSkipped, SceneStatus::kFailed})
-    if (name == SceneStatusName(s)) return s;
-  throw Error("", field, "must be ok, skipped or failed, got '" + name + "'");
+  return ParseName(kSceneStatusNames, name, "", field);
 }
 
 nlohmann::json SceneResult::ToJson() const {
   return {{"name", name},
-          {"source", source},
+          {"source", SceneSourceName(source)},
           {"scenario", scenario},
-          {"split", split},
-          {"class", scene_class},
+          {"split", BenchSplitName(split)},
+          {"class", SceneClassName(scene_class)},
           {"status", SceneStatusName(status)},
           {"reason", reason},
           {"applied_cuts", applied_cuts},
@@ -348,10 +363,10 @@ SceneResult SceneResult::FromJson(const nlohmann::json& j, const std::string& fi
   SceneResult r;
   try {
     r.name = j.at("name").get<std::string>();
-    r.source = j.at("source").get<std::string>();
+    r.source = ParseSceneSource(j.at("source").get<std::string>(), "", "source");
     r.scenario = j.at("scenario").get<std::string>();
-    r.split = j.at("split").get<std::string>();
-    r.scene_class = j.at("class").get<std::string>();
+    r.split = ParseBenchSplit(j.at("split").get<std::string>(), "", "split");
+    r.scene_class = ParseSceneClass(j.at("class").get<std::string>(), "", "class");
     r.status = ParseSceneStatus(j.at("status").get<std::string>(), "status");
     r.reason = j.at("reason").get<std::string>();
     r.applied_cuts = j.at("applied_cuts").get<int>();
@@ -381,10 +396,10 @@ SceneResult SceneResult::FromJson(const nlohmann::json& j, const std::string& fi
 void ScoreCuts(const std::vector<AppliedCut>& applied, const TrueCut& truth,
                const BenchMetricsOptions& options, SceneResult* r) {
   options.Check();
-  const bool expects_cut = r->scene_class == "cut";
+  const bool expects_cut = r->scene_class == SceneClass::kCut;
   ARREG_CHECK_INPUT(truth.present == expects_cut, "", "cut.json", "the ground truth ",
                     truth.present ? "has" : "has no", " cut but scene '", r->name, "' is of class ",
-                    r->scene_class);
+                    SceneClassName(r->scene_class));
   r->applied_cuts = static_cast<int>(applied.size());
   r->found_cuts = r->misplaced_cuts = 0;
   r->cut_found = false;
@@ -435,10 +450,10 @@ void ScoreRegistration(const RunEvaluation& with, const RunEvaluation& without, 
 }
 
 nlohmann::json GroupRow::ToJson() const {
-  return {{"source", source},
+  return {{"source", SceneSourceName(source)},
           {"scenario", scenario},
-          {"split", split},
-          {"class", scene_class},
+          {"split", BenchSplitName(split)},
+          {"class", SceneClassName(scene_class)},
           {"scenes", scenes},
           {"ok", ok},
           {"skipped", skipped},
@@ -511,7 +526,7 @@ std::vector<GroupRow> AggregateResults(const std::vector<SceneResult>& results) 
         row.internal_worst_mm =
             std::max(row.internal_worst_mm.value_or(0.0), *r->internal_worst_mm);
     }
-    if (row.scene_class == "cut") {
+    if (row.scene_class == SceneClass::kCut) {
       row.recall = found / n;
       row.misplaced_per_scene = misplaced / n;
       if (!errors.empty()) row.cut_line_error_mm = Mean(errors);
@@ -544,8 +559,8 @@ std::string FormatTable(const std::vector<GroupRow>& rows) {
     const std::string internal = Fixed(r.internal_mean_mm, 2) + "/" + Fixed(r.internal_worst_mm, 2);
     std::snprintf(line, sizeof(line),
                   "%-7s %-20s %-5s %-7s %5s | %6s %6s %6s %7s %5s | %6s %6s %6s %6s | %11s %11s\n",
-                  r.source.c_str(), r.scenario.c_str(), r.split.c_str(), r.scene_class.c_str(),
-                  count.c_str(), Fixed(r.recall, 2).c_str(),
+                  SceneSourceName(r.source), r.scenario.c_str(), BenchSplitName(r.split),
+                  SceneClassName(r.scene_class), count.c_str(), Fixed(r.recall, 2).c_str(),
                   Fixed(r.false_cuts_per_scene, 2).c_str(), Fixed(r.misplaced_per_scene, 2).c_str(),
                   Fixed(r.cut_line_error_mm, 2).c_str(), Fixed(r.latency_median_frames, 1).c_str(),
                   Fixed(r.dice_final, 4).c_str(), Fixed(r.dice_final_no_topology, 4).c_str(),
@@ -566,9 +581,9 @@ std::vector<Criterion> AcceptanceCriteria(const std::vector<SceneResult>& result
   std::vector<const SceneResult*> cut, no_cut, stretch;
   for (const SceneResult& r : results) {
     if (r.status != SceneStatus::kOk) continue;
-    if (r.scene_class == "cut") cut.push_back(&r);
-    if (r.scene_class != "cut") no_cut.push_back(&r);
-    if (r.scene_class == "stretch") stretch.push_back(&r);
+    if (r.scene_class == SceneClass::kCut) cut.push_back(&r);
+    if (r.scene_class != SceneClass::kCut) no_cut.push_back(&r);
+    if (r.scene_class == SceneClass::kStretch) stretch.push_back(&r);
   }
   std::vector<GroupRow> cut_rows;
   {
@@ -600,8 +615,8 @@ std::vector<Criterion> AcceptanceCriteria(const std::vector<SceneResult>& result
     std::optional<bool> pass;
     for (const GroupRow& row : cut_rows) {
       const std::optional<double> v = value(row);
-      measured += (measured.empty() ? "" : ", ") + row.source + "/" + row.scenario + " " +
-                  Fixed(v, decimals);
+      if (!measured.empty()) measured += ", ";
+      measured += SceneSourceName(row.source) + ("/" + row.scenario) + " " + Fixed(v, decimals);
       if (!v) continue;
       const bool ok = at_most ? *v <= bound : *v >= bound;
       pass = pass.value_or(true) && ok;

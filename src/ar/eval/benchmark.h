@@ -14,30 +14,49 @@
 
 namespace arreg::eval {
 
+// Where a scene comes from: `arreg synth` or tools/phantoms/make-scene. Spelled "synth",
+// "phantom" in the manifest and the JSON.
+enum class SceneSource { kSynth, kPhantom };
+// "dev" (to work on), "test" (to report only) or "quick" (the CI subset, run by --quick only).
+enum class BenchSplit { kDev, kTest, kQuick };
+// "cut" (precut or cut while filmed), "no-cut", or "stretch" (a no-cut scene under large
+// stretch).
+enum class SceneClass { kCut, kNoCut, kStretch };
+const char* SceneSourceName(SceneSource source);
+const char* BenchSplitName(BenchSplit split);
+const char* SceneClassName(SceneClass scene_class);
+// Inverses of the names; throw arreg::Error naming `file` and `field` for any other name.
+SceneSource ParseSceneSource(const std::string& name, const std::string& file,
+                             const std::string& field);
+BenchSplit ParseBenchSplit(const std::string& name, const std::string& file,
+                           const std::string& field);
+SceneClass ParseSceneClass(const std::string& name, const std::string& file,
+                           const std::string& field);
+
 // Generator parameters of one scene. `frames` and the size are required in the manifest; the
 // others exist for the synth source only and default to `arreg synth`'s defaults.
 struct BenchSceneParams {
-  int frames = 0;                                          // video frames, >= 2
-  int width = 0, height = 0;                               // image size in px (even)
-  double zoom = 1.0;                                       // synth --zoom, in [0.5, 4]
-  double amplitude = 1.0;                                  // synth --amplitude, in (0, 1.5]
-  double noise = 2.0;                                      // synth --noise, 8-bit grey levels, >= 0
-  double blur = 0.0;                                       // synth --blur, px, >= 0
-  bool occluder = false;                                   // synth --occluder
-  nlohmann::json ToJson(const std::string& source) const;  // the keys the source takes
+  int frames = 0;                                   // video frames, >= 2
+  int width = 0, height = 0;                        // image size in px (even)
+  double zoom = 1.0;                                // synth --zoom, in [0.5, 4]
+  double amplitude = 1.0;                           // synth --amplitude, in (0, 1.5]
+  double noise = 2.0;                               // synth --noise, 8-bit grey levels, >= 0
+  double blur = 0.0;                                // synth --blur, px, >= 0
+  bool occluder = false;                            // synth --occluder
+  nlohmann::json ToJson(SceneSource source) const;  // the keys the source takes
 };
 
 // One scene of the manifest.
 struct BenchScene {
-  std::string name;         // unique in the manifest
-  std::string source;       // "synth" (`arreg synth`) or "phantom" (tools/phantoms/make-scene)
-  std::string scenario;     // the source's scenario name
-  int seed = 0;             // >= 0
-  std::string split;        // "dev", "test" or "quick" (the CI subset, run by --quick only)
-  std::string scene_class;  // "cut" (precut or cut while filmed), "no-cut" or "stretch"
+  std::string name;  // unique in the manifest
+  SceneSource source = SceneSource::kSynth;
+  std::string scenario;  // the source's scenario name
+  int seed = 0;          // >= 0
+  BenchSplit split = BenchSplit::kDev;
+  SceneClass scene_class = SceneClass::kCut;
   BenchSceneParams params;
   // A cut is expected in the ground truth; stretch scenes are no-cut scenes too.
-  bool ExpectsCut() const { return scene_class == "cut"; }
+  bool ExpectsCut() const { return scene_class == SceneClass::kCut; }
   // Folder name in the scene cache: source, scenario, seed and a hash of every generator
   // parameter, so that a change of any of them makes a new scene.
   std::string CacheKey() const;
@@ -99,7 +118,10 @@ SceneStatus ParseSceneStatus(const std::string& name, const std::string& field);
 
 // Everything the benchmark reports for one scene (docs/benchmark.md "Metrics").
 struct SceneResult {
-  std::string name, source, scenario, split, scene_class;
+  std::string name, scenario;
+  SceneSource source = SceneSource::kSynth;
+  BenchSplit split = BenchSplit::kDev;
+  SceneClass scene_class = SceneClass::kCut;
   SceneStatus status = SceneStatus::kOk;
   std::string reason;      // why skipped or failed
   int applied_cuts = 0;    // applied cut events of the run with topology
@@ -131,7 +153,10 @@ void ScoreRegistration(const RunEvaluation& with_topology, const RunEvaluation& 
 
 // One line of the table: the scenes of one source, scenario and split.
 struct GroupRow {
-  std::string source, scenario, split, scene_class;
+  std::string scenario;
+  SceneSource source = SceneSource::kSynth;
+  BenchSplit split = BenchSplit::kDev;
+  SceneClass scene_class = SceneClass::kCut;
   int scenes = 0, ok = 0, skipped = 0, failed = 0;
   std::optional<double> recall;                 // cut: scenes with a found cut / ok scenes
   std::optional<double> false_cuts_per_scene;   // no-cut, stretch: applied events / ok scenes

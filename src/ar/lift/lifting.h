@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/camera.h"
+#include "core/enum_names.h"
 #include "core/mesh.h"
 
 namespace arreg::lift {
@@ -88,6 +89,9 @@ enum class LiftTarget {
   kPlane,    // p_FP: the plane the video "leans against"
   kSurface,  // p_FS: the model surface, moved by the intercept theorem (eq. 7.1)
 };
+// The spelling in scene files, options and records: "surface", "plane".
+inline constexpr EnumName<LiftTarget> kLiftTargetNames[] = {{LiftTarget::kSurface, "surface"},
+                                                            {LiftTarget::kPlane, "plane"}};
 
 // How the surface targets p^1_FS are updated after frame 0.
 enum class SurfaceUpdate {
@@ -99,6 +103,10 @@ enum class SurfaceUpdate {
   // part of the surface).
   kRayCastWithFallback,
 };
+// The spelling in scene files, options and records: "intercept", "raycast".
+inline constexpr EnumName<SurfaceUpdate> kSurfaceUpdateNames[] = {
+    {SurfaceUpdate::kInterceptTheorem, "intercept"},
+    {SurfaceUpdate::kRayCastWithFallback, "raycast"}};
 
 struct FeatureLifterOptions {
   LiftTarget target = LiftTarget::kSurface;                         // default: model surface

@@ -34,19 +34,11 @@ void MechanicsStageOptions::Check() const {
 }
 
 const char* CutConfigurationName(CutConfiguration configuration) {
-  switch (configuration) {
-    case CutConfiguration::kRest:
-      return "rest";
-    case CutConfiguration::kCurrent:
-      return "current";
-  }
-  return "?";
+  return NameOf(kCutConfigurationNames, configuration);
 }
 
 CutConfiguration ParseCutConfiguration(const std::string& name, const std::string& field) {
-  if (name == "rest") return CutConfiguration::kRest;
-  if (name == "current") return CutConfiguration::kCurrent;
-  throw Error("", field, "must be \"rest\" or \"current\", got \"" + name + "\"");
+  return ParseName(kCutConfigurationNames, name, "", field);
 }
 
 void CuttingStageOptions::Check() const {
@@ -190,9 +182,7 @@ void ReadTracking(const Scene& scene, FeatureTrackerOptions* o, PipelineOptions*
   r.Optional("window_px", &o->lk.window_px);
   r.Optional("pyramid_levels", &o->lk.pyramid_levels);
   r.Optional("forward_backward_max_px", &o->lk.forward_backward_max_px);
-  std::string backend = LucasKanadeBackendName(o->lk.backend);
-  r.OptionalChoice("lk_backend", {"arreg", "opencv"}, &backend);
-  o->lk.backend = backend == "opencv" ? LucasKanadeBackend::kOpenCv : LucasKanadeBackend::kArreg;
+  r.OptionalEnum("lk_backend", kLucasKanadeBackendNames, &o->lk.backend);
   r.Optional("outlier_filter", &o->outliers.enabled);
   r.Optional("outlier_ratio", &o->outliers.ratio);
   r.Optional("outlier_slack_px", &o->outliers.slack_px);
@@ -216,13 +206,8 @@ void ReadTracking(const Scene& scene, FeatureTrackerOptions* o, PipelineOptions*
 
 void ReadLifting(const Scene& scene, lift::FeatureLifterOptions* o) {
   JsonObjectReader r(scene.lifting, scene.path, "lifting");
-  std::string target = o->target == lift::LiftTarget::kPlane ? "plane" : "surface";
-  r.OptionalChoice("target", {"surface", "plane"}, &target);
-  o->target = target == "plane" ? lift::LiftTarget::kPlane : lift::LiftTarget::kSurface;
-  std::string update = "intercept";
-  r.OptionalChoice("surface_update", {"intercept", "raycast"}, &update);
-  o->surface_update = update == "raycast" ? lift::SurfaceUpdate::kRayCastWithFallback
-                                          : lift::SurfaceUpdate::kInterceptTheorem;
+  r.OptionalEnum("target", lift::kLiftTargetNames, &o->target);
+  r.OptionalEnum("surface_update", lift::kSurfaceUpdateNames, &o->surface_update);
   r.Optional("max_depth_jump_mm", &o->max_depth_jump_mm);
   r.Optional("follow_model_thinning", &o->follow_model_thinning);
   r.Finish();
@@ -231,10 +216,7 @@ void ReadLifting(const Scene& scene, lift::FeatureLifterOptions* o) {
 void ReadMechanics(const Scene& scene, MechanicsStageOptions* o) {
   JsonObjectReader r(scene.mechanics, scene.path, "mechanics");
   r.Optional("spring_stiffness_relative", &o->spring_stiffness_relative);
-  std::string volume = o->volume_term == mechanics::VolumeTerm::kJacobian ? "jacobian" : "linear";
-  r.OptionalChoice("volume_term", {"jacobian", "linear"}, &volume);
-  o->volume_term =
-      volume == "jacobian" ? mechanics::VolumeTerm::kJacobian : mechanics::VolumeTerm::kLinear;
+  r.OptionalEnum("volume_term", mechanics::kVolumeTermNames, &o->volume_term);
   r.Optional("spring_stiffness_n_per_m", &o->spring_stiffness_n_per_m);
   r.Optional("substeps", &o->substeps);
   r.Optional("newton_iterations", &o->newton_iterations);
@@ -243,9 +225,7 @@ void ReadMechanics(const Scene& scene, MechanicsStageOptions* o) {
   r.Optional("gravity_mm_per_s2", &o->gravity_mm_per_s2);
   r.Optional("fixed_vertices", &o->fixed_vertices);
   r.Optional("out_of_view_tether", &o->out_of_view_tether);
-  std::string linear_solver = mechanics::LinearSolverTypeName(o->linear_solver);
-  r.OptionalChoice("linear_solver", {"cholmod-pcg", "cholmod", "cg"}, &linear_solver);
-  o->linear_solver = mechanics::ParseLinearSolverType(linear_solver);
+  r.OptionalEnum("linear_solver", mechanics::kLinearSolverTypeNames, &o->linear_solver);
   r.Optional("line_search", &o->line_search);
   r.Optional("output_spring_factor", &o->output_spring_factor);
   r.Finish();
@@ -265,10 +245,7 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("outlier_factor", &o->detector.outlier_factor);
   r.Optional("min_outliers", &o->detector.min_outliers);
   r.Optional("cut_point_radius_mm", &o->detector.cut_point_radius_mm);
-  std::string measure = o->detector.measure == cutting::CutMeasure::kImageOnly ? "image" : "model";
-  r.OptionalChoice("measure", {"image", "model"}, &measure);
-  o->detector.measure =
-      measure == "image" ? cutting::CutMeasure::kImageOnly : cutting::CutMeasure::kModelRegularised;
+  r.OptionalEnum("measure", cutting::kCutMeasureNames, &o->detector.measure);
   r.Optional("require_opening", &o->detector.require_opening);
   r.Optional("cluster_outliers", &o->detector.cluster_outliers);
   r.Optional("min_opening_balance", &o->detector.min_opening_balance);
@@ -282,11 +259,7 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("probe_pair_length_factor", &o->detector.probe_pair_length_factor);
   r.Optional("probe_outlier_factor", &o->detector.probe_outlier_factor);
   r.Optional("probe_max_lead_factor", &o->detector.probe_max_lead_factor);
-  std::string decision =
-      o->detector.decision == cutting::CutDecision::kRules ? "rules" : "separation-test";
-  r.OptionalChoice("decision", {"separation-test", "rules"}, &decision);
-  o->detector.decision =
-      decision == "rules" ? cutting::CutDecision::kRules : cutting::CutDecision::kSeparationTest;
+  r.OptionalEnum("decision", cutting::kCutDecisionNames, &o->detector.decision);
   r.Optional("false_alarm_probability", &o->detector.separation.false_alarm_probability);
   r.Optional("min_features_per_side", &o->detector.separation.min_features_per_side);
   r.Optional("separation_directions", &o->detector.separation.directions);
@@ -296,27 +269,21 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("tracking_noise_px", &o->tracking_noise_px);
   r.Optional("spring_margin_mm", &o->spring_margin_mm);
   r.Optional("extrusion_margin_mm", &o->extrusion_margin_mm);
-  std::string method = cutting::RemeshMethodName(o->method);
-  r.OptionalChoice("method", {"flips", "bielser"}, &method);
-  o->method = cutting::ParseRemeshMethod(method, "", "cutting.method");
+  r.OptionalEnum("method", cutting::kRemeshMethodNames, &o->method);
   r.Optional("snap_epsilon", &o->snap_epsilon);
   r.Optional("on_surface_tolerance", &o->on_surface_tolerance);
   r.Optional("keep_connected", &o->keep_connected);
   r.Optional("first_event_foresight", &o->first_event_foresight);
   r.Optional("min_outlier_measure_px", &o->min_outlier_measure_px);
   r.Optional("refuse_splitting_segments", &o->refuse_splitting_segments);
-  std::string configuration = CutConfigurationName(o->cut_configuration);
-  r.OptionalChoice("cut_configuration", {"rest", "current"}, &configuration);
-  o->cut_configuration = ParseCutConfiguration(configuration, "cutting.cut_configuration");
+  r.OptionalEnum("cut_configuration", kCutConfigurationNames, &o->cut_configuration);
   r.Optional("internal_caps", &o->internal_caps);
   r.Finish();
 }
 
 void ReadRender(const Scene& scene, RenderStageOptions* o) {
   JsonObjectReader r(scene.render, scene.path, "render");
-  std::string style = o->style == OverlayStyle::kTint ? "tint" : "contour";
-  r.OptionalChoice("style", {"contour", "tint"}, &style);
-  o->style = style == "tint" ? OverlayStyle::kTint : OverlayStyle::kContour;
+  r.OptionalEnum("style", kOverlayStyleNames, &o->style);
   r.Optional("contour_color", &o->contour_color);
   r.Optional("cut_edge_color", &o->cut_edge_color);
   r.Optional("contour_width_px", &o->contour_width_px);
@@ -401,28 +368,23 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
                    {"instrument_margin_px", o.tracking.instruments.mask.margin_px},
                    {"instrument_motion", o.tracking.instruments.motion.enabled},
                    {"reidentify_after_instrument", o.tracking.reidentify.after_instrument}};
-  j["lifting"] = {
-      {"target", o.lifting.target == lift::LiftTarget::kPlane ? "plane" : "surface"},
-      {"surface_update", o.lifting.surface_update == lift::SurfaceUpdate::kRayCastWithFallback
-                             ? "raycast"
-                             : "intercept"},
-      {"max_depth_jump_mm", o.lifting.max_depth_jump_mm},
-      {"follow_model_thinning", o.lifting.follow_model_thinning}};
-  j["mechanics"] = {
-      {"spring_stiffness_relative", o.mechanics.spring_stiffness_relative},
-      {"volume_term",
-       o.mechanics.volume_term == mechanics::VolumeTerm::kJacobian ? "jacobian" : "linear"},
-      {"spring_stiffness_n_per_m", o.mechanics.spring_stiffness_n_per_m},
-      {"substeps", o.mechanics.substeps},
-      {"newton_iterations", o.mechanics.newton_iterations},
-      {"rayleigh_mass_per_s", o.mechanics.rayleigh_mass_per_s},
-      {"rayleigh_stiffness_s", o.mechanics.rayleigh_stiffness_s},
-      {"gravity_mm_per_s2", vec(o.mechanics.gravity_mm_per_s2)},
-      {"fixed_vertices", o.mechanics.fixed_vertices},
-      {"out_of_view_tether", o.mechanics.out_of_view_tether},
-      {"linear_solver", mechanics::LinearSolverTypeName(o.mechanics.linear_solver)},
-      {"line_search", o.mechanics.line_search},
-      {"output_spring_factor", o.mechanics.output_spring_factor}};
+  j["lifting"] = {{"target", NameOf(lift::kLiftTargetNames, o.lifting.target)},
+                  {"surface_update", NameOf(lift::kSurfaceUpdateNames, o.lifting.surface_update)},
+                  {"max_depth_jump_mm", o.lifting.max_depth_jump_mm},
+                  {"follow_model_thinning", o.lifting.follow_model_thinning}};
+  j["mechanics"] = {{"spring_stiffness_relative", o.mechanics.spring_stiffness_relative},
+                    {"volume_term", mechanics::VolumeTermName(o.mechanics.volume_term)},
+                    {"spring_stiffness_n_per_m", o.mechanics.spring_stiffness_n_per_m},
+                    {"substeps", o.mechanics.substeps},
+                    {"newton_iterations", o.mechanics.newton_iterations},
+                    {"rayleigh_mass_per_s", o.mechanics.rayleigh_mass_per_s},
+                    {"rayleigh_stiffness_s", o.mechanics.rayleigh_stiffness_s},
+                    {"gravity_mm_per_s2", vec(o.mechanics.gravity_mm_per_s2)},
+                    {"fixed_vertices", o.mechanics.fixed_vertices},
+                    {"out_of_view_tether", o.mechanics.out_of_view_tether},
+                    {"linear_solver", mechanics::LinearSolverTypeName(o.mechanics.linear_solver)},
+                    {"line_search", o.mechanics.line_search},
+                    {"output_spring_factor", o.mechanics.output_spring_factor}};
   j["cutting"] = {
       {"enabled", o.cutting.enabled},
       {"neighbour_radius_mm", o.cutting.detector.neighbour_radius_mm},
@@ -436,8 +398,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"outlier_factor", o.cutting.detector.outlier_factor},
       {"min_outliers", o.cutting.detector.min_outliers},
       {"cut_point_radius_mm", o.cutting.detector.cut_point_radius_mm},
-      {"measure",
-       o.cutting.detector.measure == cutting::CutMeasure::kImageOnly ? "image" : "model"},
+      {"measure", NameOf(cutting::kCutMeasureNames, o.cutting.detector.measure)},
       {"require_opening", o.cutting.detector.require_opening},
       {"cluster_outliers", o.cutting.detector.cluster_outliers},
       {"min_opening_balance", o.cutting.detector.min_opening_balance},
@@ -451,8 +412,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"probe_pair_length_factor", o.cutting.detector.probe_pair_length_factor},
       {"probe_outlier_factor", o.cutting.detector.probe_outlier_factor},
       {"probe_max_lead_factor", o.cutting.detector.probe_max_lead_factor},
-      {"decision",
-       o.cutting.detector.decision == cutting::CutDecision::kRules ? "rules" : "separation-test"},
+      {"decision", NameOf(cutting::kCutDecisionNames, o.cutting.detector.decision)},
       {"false_alarm_probability", o.cutting.detector.separation.false_alarm_probability},
       {"min_features_per_side", o.cutting.detector.separation.min_features_per_side},
       {"separation_directions", o.cutting.detector.separation.directions},
@@ -472,7 +432,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"cut_configuration", CutConfigurationName(o.cutting.cut_configuration)},
       {"internal_caps", o.cutting.internal_caps}};
   j["render"] = {{"enabled", o.render.enabled},
-                 {"style", o.render.style == OverlayStyle::kTint ? "tint" : "contour"},
+                 {"style", NameOf(kOverlayStyleNames, o.render.style)},
                  {"contour_color", vec(o.render.contour_color)},
                  {"cut_edge_color", vec(o.render.cut_edge_color)},
                  {"contour_width_px", o.render.contour_width_px},

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "ar/lift/lifting.h"
+#include "core/enum_names.h"
 #include "core/mesh.h"
 #include "core/scene.h"
 #include "cutting/detection.h"
@@ -83,6 +84,8 @@ struct MechanicsStageOptions {
 // Where the cutting stage builds and cuts S (CuttingStageOptions::cut_configuration).
 enum class CutConfiguration { kRest, kCurrent };
 // The spelling in scene files and run records: "rest", "current".
+inline constexpr EnumName<CutConfiguration> kCutConfigurationNames[] = {
+    {CutConfiguration::kRest, "rest"}, {CutConfiguration::kCurrent, "current"}};
 const char* CutConfigurationName(CutConfiguration configuration);
 // Inverse of CutConfigurationName; throws arreg::Error naming `field` for any other name.
 CutConfiguration ParseCutConfiguration(const std::string& name, const std::string& field);
@@ -182,6 +185,9 @@ enum class OverlayStyle {
   kContour,  // its outline and cut edges as lines, the video inside left as it is
   kTint,     // a translucent shaded surface (organ_opacity, organ_color)
 };
+// The spelling in scene files and run records: "contour", "tint".
+inline constexpr EnumName<OverlayStyle> kOverlayStyleNames[] = {{OverlayStyle::kContour, "contour"},
+                                                                {OverlayStyle::kTint, "tint"}};
 
 // Overlay rendering (z-buffered, anti-aliased) drawn over the decoded frame.
 struct RenderStageOptions {
