@@ -139,7 +139,7 @@ void CutDetector::Initialize(const RowMatX3d& initial_positions_mm, const std::v
     }
   }
   index_of_id_.clear();
-  index_of_id_.reserve(2 * n);
+  index_of_id_.reserve(2 * static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) {
     const bool inserted = index_of_id_.emplace(ids[i], i).second;
     ARREG_CHECK_INPUT(inserted, "", "CutDetector::Initialize", "feature id ", ids[i],
@@ -171,7 +171,7 @@ void CutDetector::Initialize(const RowMatX3d& initial_positions_mm, const std::v
   grid_origin_mm_ = initial_mm_.colwise().minCoeff();
   std::vector<Eigen::Matrix<long long, 3, 1>>& key = cell_of_;
   key.resize(n);
-  grid_.reserve(2 * n);
+  grid_.reserve(2 * static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) {
     key[i] = CellKey(initial_mm_.row(i).transpose());
     grid_.emplace(CellHash(key[i](0), key[i](1), key[i](2)), i);
@@ -375,7 +375,9 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   result->measure.resize(num_pairs);
   for (int k = 0; k < num_pairs; ++k)
     result->measure[k] = Measure(pairs_[k].first, pairs_[k].second);
-  const double mean = MeanOverCf(pairs_, result->measure);
+  const double mean = options_.mean_of_inliers
+                          ? MeanOfInliers(pairs_, result->measure, options_.outlier_factor)
+                          : MeanOverCf(pairs_, result->measure);
   result->mean_measure = mean;
   model_threshold_ = -1.0;  // the model-regularised measure is computed when a start asks
   threshold_ = OutlierThreshold(options_.outlier_factor, mean);
@@ -599,6 +601,27 @@ double CutDetector::MeanOverCf(const std::vector<FeaturePair>& pairs,
   }
   const int of_cf = static_cast<int>(pairs.size()) - bridges;
   return of_cf > 0 ? sum / of_cf : (bridges > 0 ? bridge_sum / bridges : 0.0);
+}
+
+double CutDetector::MeanOfInliers(const std::vector<FeaturePair>& pairs,
+                                  const std::vector<double>& values, double factor) const {
+  double mean = MeanOverCf(pairs, values);
+  std::vector<FeaturePair> kept_pairs;
+  std::vector<double> kept_values;
+  size_t inliers = pairs.size();
+  for (;;) {
+    const double threshold = OutlierThreshold(factor, mean);
+    kept_pairs.clear();
+    kept_values.clear();
+    for (size_t k = 0; k < pairs.size(); ++k)
+      if (values[k] <= threshold) {
+        kept_pairs.push_back(pairs[k]);
+        kept_values.push_back(values[k]);
+      }
+    if (kept_pairs.size() == inliers || kept_pairs.empty()) return mean;
+    inliers = kept_pairs.size();
+    mean = MeanOverCf(kept_pairs, kept_values);
+  }
 }
 
 bool CutDetector::ConfirmedByModelMeasure(const Eigen::Vector3d& point_mm,

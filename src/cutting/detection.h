@@ -70,6 +70,15 @@ struct CutDetectorOptions {
   // the re-entrant corners of a band stretched to 166-186 % (where the coarse model cannot
   // follow the truth) make cut points on the synthetic precut bands. Default 10.
   double outlier_factor = 10.0;
+  // The scale mean(mu) of tau is the mean over the pairs that are not outliers: the fixed point
+  // m = mean{mu_k : mu_k <= tau m} over C_F, reached from the plain mean by iteration. mean(mu)
+  // stands for the smooth misfit of a continuous deformation; the pairs across a cut and a
+  // mistracked feature's pairs are what the threshold is to find, and with the plain mean they
+  // raise it (the longer a precut, the more pairs cross it, the higher the bar). Where no pair
+  // exceeds tau times the plain mean both are the same. false: the thesis's plain mean. It
+  // helps the synthetic dev scenes, not the phantom ones (docs/detection.md, "The inliers'
+  // mean"). Default false.
+  bool mean_of_inliers = false;
   // n [-]: outlier count (weighted, see outlier_weight_cap) at which a cut point is inserted.
   // The thesis uses 8 (kidney 1) and 3 (kidney 2, whose cuts are crossed by few tracked pairs).
   // Default 4: on the synthetic cut-while-filmed bands the tracker keeps only a few pairs across
@@ -498,6 +507,11 @@ class CutDetector {
   // is left (bridges are up to 2 r_F long and would shift the threshold tau refers to).
   static double MeanOverCf(const std::vector<FeaturePair>& pairs,
                            const std::vector<double>& values);
+  // The fixed point m = mean{v_k : v_k <= OutlierThreshold(factor, m)} of MeanOverCf, from the
+  // plain mean (CutDetectorOptions::mean_of_inliers); m only decreases, so the inliers only
+  // shrink and the iteration ends.
+  double MeanOfInliers(const std::vector<FeaturePair>& pairs, const std::vector<double>& values,
+                       double factor) const;
   // Whether the pairs of this frame within r_F of the point (current midpoints) reach n as
   // outliers of the model-regularised measure (confirm_starts_with_model_measure). Computes
   // that measure for the frame on its first call.

@@ -717,6 +717,12 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_EQ(ReadPipelineOptions(scene).cutting.min_outlier_measure_px, 0.5);
   scene.cutting = {{"min_outlier_measure_px", -1}};
   EXPECT_THROW(ReadPipelineOptions(scene), Error);
+  // the scale of tau: the plain mean unless the mean of the inliers is asked for.
+  EXPECT_FALSE(o.cutting.detector.mean_of_inliers);
+  scene.cutting = {{"mean_of_inliers", true}};
+  EXPECT_TRUE(ReadPipelineOptions(scene).cutting.detector.mean_of_inliers);
+  scene.cutting = {{"mean_of_inliers", 1}};
+  EXPECT_THROW(ReadPipelineOptions(scene), Error);
   // conservative starts, opt-in.
   EXPECT_FALSE(o.cutting.detector.confirm_starts_with_model_measure);
   scene.cutting = {{"confirm_starts_with_model_measure", true}};

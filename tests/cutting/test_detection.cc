@@ -1062,6 +1062,52 @@ TEST(CutDetector, SlidingFeatureGivesNoCut) {
   }
 }
 
+// mean_of_inliers: the scale of tau is the mean over the pairs that are not outliers, a fixed
+// point below the plain mean once a sliding feature's pairs stand out, the plain mean while none
+// does; its threshold finds at least the plain one's outliers.
+TEST(CutDetector, MeanOfInliersIsTheMeanOfThePairsBelowItsThreshold) {
+  const FeatureGrid g = MakeGrid();
+  const int sliding = 10 * 35 + 17;
+  CutDetectorOptions plain_options, inlier_options;
+  inlier_options.mean_of_inliers = true;
+  CutDetector plain(plain_options), inliers(inlier_options);
+  plain.Initialize(g.p0, g.ids);
+  inliers.Initialize(g.p0, g.ids);
+  std::mt19937 rng(8);
+  DetectionResult rp, ri;
+  int below = 0;
+  for (int k = 0; k <= 30; ++k) {
+    SCOPED_TRACE("frame " + std::to_string(k));
+    RowMatX3d target = g.p0;
+    AddTrackingNoise(&target, &rng);
+    target(sliding, 0) += 0.5 * k;
+    plain.Update(MakeFrame(g, target, g.p0), &rp);
+    inliers.Update(MakeFrame(g, target, g.p0), &ri);
+    ASSERT_EQ(rp.measure, ri.measure);
+    const double threshold = std::max(inlier_options.outlier_factor * ri.mean_measure,
+                                      inlier_options.min_outlier_measure_mm);
+    double sum = 0.0;
+    int count = 0;
+    bool any_above_plain = false;
+    for (size_t i = 0; i < ri.measure.size(); ++i) {
+      if (ri.measure[i] <= threshold) {
+        sum += ri.measure[i];
+        ++count;
+      }
+      any_above_plain |= rp.measure[i] > plain_options.outlier_factor * rp.mean_measure;
+    }
+    ASSERT_GT(count, 0);
+    EXPECT_NEAR(ri.mean_measure, sum / count, 1e-12 * rp.mean_measure);
+    EXPECT_LE(ri.mean_measure, rp.mean_measure + 1e-15);
+    if (!any_above_plain) {
+      EXPECT_DOUBLE_EQ(ri.mean_measure, rp.mean_measure);
+    }
+    if (ri.mean_measure < rp.mean_measure) ++below;
+    EXPECT_GE(ri.outliers.size(), rp.outliers.size());
+  }
+  EXPECT_GT(below, 10);  // the slider's pairs leave the scale once they stand out
+}
+
 // The upper half of the grid rises from the lower one at the seam y = 0, the model spanning the
 // gap (both halves' targets lie outward of their model points, as across a cut), but the three
 // rows above the seam carry one feature only: its pairs to the features below are the only ones

@@ -243,6 +243,7 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("closing_window_frames", &o->detector.closing_window_frames);
   r.Optional("max_closing_fraction", &o->detector.max_closing_fraction);
   r.Optional("outlier_factor", &o->detector.outlier_factor);
+  r.Optional("mean_of_inliers", &o->detector.mean_of_inliers);
   r.Optional("min_outliers", &o->detector.min_outliers);
   r.Optional("cut_point_radius_mm", &o->detector.cut_point_radius_mm);
   r.OptionalEnum("measure", cutting::kCutMeasureNames, &o->detector.measure);
@@ -396,6 +397,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"closing_window_frames", o.cutting.detector.closing_window_frames},
       {"max_closing_fraction", o.cutting.detector.max_closing_fraction},
       {"outlier_factor", o.cutting.detector.outlier_factor},
+      {"mean_of_inliers", o.cutting.detector.mean_of_inliers},
       {"min_outliers", o.cutting.detector.min_outliers},
       {"cut_point_radius_mm", o.cutting.detector.cut_point_radius_mm},
       {"measure", NameOf(cutting::kCutMeasureNames, o.cutting.detector.measure)},
