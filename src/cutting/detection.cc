@@ -588,39 +588,33 @@ void CutDetector::InsertCutPoints(bool bridge_pass, DetectionResult* result) {
 }
 
 double CutDetector::MeanOverCf(const std::vector<FeaturePair>& pairs,
-                               const std::vector<double>& values) {
+                               const std::vector<double>& values, double at_most, int* counted) {
   double sum = 0.0, bridge_sum = 0.0;
-  int bridges = 0;
+  int of_cf = 0, bridges = 0;
   for (size_t k = 0; k < pairs.size(); ++k) {
+    if (values[k] > at_most) continue;
     if (pairs[k].bridge) {
       bridge_sum += values[k];
       ++bridges;
     } else {
       sum += values[k];
+      ++of_cf;
     }
   }
-  const int of_cf = static_cast<int>(pairs.size()) - bridges;
+  if (counted) *counted = of_cf + bridges;
   return of_cf > 0 ? sum / of_cf : (bridges > 0 ? bridge_sum / bridges : 0.0);
 }
 
 double CutDetector::MeanOfInliers(const std::vector<FeaturePair>& pairs,
                                   const std::vector<double>& values, double factor) const {
   double mean = MeanOverCf(pairs, values);
-  std::vector<FeaturePair> kept_pairs;
-  std::vector<double> kept_values;
-  size_t inliers = pairs.size();
+  int inliers = static_cast<int>(pairs.size());
   for (;;) {
-    const double threshold = OutlierThreshold(factor, mean);
-    kept_pairs.clear();
-    kept_values.clear();
-    for (size_t k = 0; k < pairs.size(); ++k)
-      if (values[k] <= threshold) {
-        kept_pairs.push_back(pairs[k]);
-        kept_values.push_back(values[k]);
-      }
-    if (kept_pairs.size() == inliers || kept_pairs.empty()) return mean;
-    inliers = kept_pairs.size();
-    mean = MeanOverCf(kept_pairs, kept_values);
+    int kept = 0;
+    const double next = MeanOverCf(pairs, values, OutlierThreshold(factor, mean), &kept);
+    if (kept == inliers || kept == 0) return mean;
+    inliers = kept;
+    mean = next;
   }
 }
 

@@ -504,9 +504,11 @@ class CutDetector {
   double Measure(int l, int m) const { return Measure(l, m, options_.measure); }
   double Measure(int l, int m, CutMeasure variant) const;
   // The mean of per-pair values over the pairs of C_F, or over the bridges when no pair of C_F
-  // is left (bridges are up to 2 r_F long and would shift the threshold tau refers to).
-  static double MeanOverCf(const std::vector<FeaturePair>& pairs,
-                           const std::vector<double>& values);
+  // is left (bridges are up to 2 r_F long and would shift the threshold tau refers to). Only
+  // values <= at_most count; *counted (when given) receives how many did.
+  static double MeanOverCf(const std::vector<FeaturePair>& pairs, const std::vector<double>& values,
+                           double at_most = std::numeric_limits<double>::infinity(),
+                           int* counted = nullptr);
   // The fixed point m = mean{v_k : v_k <= OutlierThreshold(factor, m)} of MeanOverCf, from the
   // plain mean (CutDetectorOptions::mean_of_inliers); m only decreases, so the inliers only
   // shrink and the iteration ends.
