@@ -299,8 +299,12 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
                     "target (", frame.target_mm.rows(), ") and model (", frame.model_mm.rows(),
                     ") rows must match the ", rows, " ids");
 
+  ARREG_CHECK_INPUT(frame.occluded.empty() || static_cast<int>(frame.occluded.size()) == rows, "",
+                    where, "occluded (", frame.occluded.size(), ") must be empty or match the ",
+                    rows, " ids");
   // Map this frame's rows to features; features not listed die.
   std::fill(row_of_feature_.begin(), row_of_feature_.end(), -1);
+  occluded_.assign(n, 0);
   for (int r = 0; r < rows; ++r) {
     const auto it = index_of_id_.find(frame.ids[r]);
     ARREG_CHECK_INPUT(it != index_of_id_.end(), "", where, "unknown feature id ", frame.ids[r]);
@@ -310,6 +314,7 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
     ARREG_CHECK_INPUT(alive_[f], "", where, "feature id ", frame.ids[r],
                       " was lost in an earlier frame and cannot come back");
     row_of_feature_[f] = r;
+    if (!frame.occluded.empty()) occluded_[f] = frame.occluded[r];
     model_mm_.row(f) = frame.model_mm.row(r);
     target_mm_.row(f) = frame.target_mm.row(r);
   }
@@ -384,6 +389,9 @@ void CutDetector::Update(const FrameFeatures& frame, DetectionResult* result) {
   for (int k = 0; k < num_pairs; ++k) {
     if (result->measure[k] <= threshold_) continue;
     if (options_.require_opening && !Opens(pairs_[k])) continue;
+    if (options_.ignore_occluded_pairs &&
+        (occluded_[pairs_[k].first] || occluded_[pairs_[k].second]))
+      continue;
     result->outliers.push_back(k);
   }
 

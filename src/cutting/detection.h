@@ -108,6 +108,12 @@ struct CutDetectorOptions {
   // outliers around one feature, which pulled the barycentre off the seam). false gives the
   // thesis's test. Default true.
   bool require_opening = true;
+  // A pair with a feature whose tracking window holds an occluder this frame
+  // (FrameFeatures::occluded: an instrument in the window) is no outlier. Such a window holds
+  // two motions, the tissue's and the instrument's; the track follows a mixture of them, and
+  // its misfit then says where the instrument moved, not where the tissue separated. Its mu
+  // still counts in mean(mu). false: every pair can be an outlier. Default true.
+  bool ignore_occluded_pairs = true;
   // Only one cluster of outliers makes a cut point: the outliers whose pair midpoints lie within
   // r_F of the outlier whose r_F neighbourhood has the largest sum of mu; n applies to that
   // cluster, and its pairs are removed with those crossing the r_pc sphere. Not in the thesis,
@@ -327,6 +333,9 @@ struct FrameFeatures {
   std::vector<int> ids;  // ids of the alive features (any order, each at most once)
   RowMatX3d target_mm;   // (#ids x 3) p^1_l: targets lifted from the image
   RowMatX3d model_mm;    // (#ids x 3) p^t_l(P_V): embedded feature points on the current model
+  // Empty, or (#ids) 1 where an occluder (an instrument) lies in the feature's tracking window
+  // this frame: with ignore_occluded_pairs, its pairs cannot be outliers this frame.
+  std::vector<char> occluded;
 };
 
 struct CutPoint {
@@ -582,6 +591,7 @@ class CutDetector {
   RowMatX3d initial_mm_;        // (#F x 3) p^0
   std::unordered_map<int, int> index_of_id_;
   std::vector<char> alive_;
+  std::vector<char> occluded_;  // per feature, this frame (FrameFeatures::occluded)
   std::vector<FeaturePair> pairs_;
   Eigen::RowVector3d grid_origin_mm_ = Eigen::RowVector3d::Zero();
   std::unordered_multimap<long long, int> grid_;         // frame-0 positions by cell (size r_F)

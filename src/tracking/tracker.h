@@ -277,6 +277,9 @@ class FeatureTracker {
   // The current frame's instrument mask (CV_8UC1, 255 on instruments; empty when
   // instruments.enabled is off or the input is grey).
   const cv::Mat& instrument_mask() const { return instrument_mask_; }
+  // Whether an instrument mask pixel lies in the lk.window_px square window centred on p: a
+  // track there follows a window that holds two motions, the tissue's and the instrument's.
+  bool WindowOnInstrument(cv::Point2f p) const;
 
  private:
   void PrepareFrame(const cv::Mat& image, const cv::Mat& roi_mask);

@@ -113,6 +113,15 @@ void FeatureTracker::RejectRigidInstrumentMotion() {
   }
 }
 
+bool FeatureTracker::WindowOnInstrument(cv::Point2f p) const {
+  if (instrument_mask_.empty()) return false;
+  const int half = options_.lk.window_px / 2;
+  const int cx = static_cast<int>(std::lround(p.x)), cy = static_cast<int>(std::lround(p.y));
+  const cv::Rect window = cv::Rect(cx - half, cy - half, 2 * half + 1, 2 * half + 1) &
+                          cv::Rect(0, 0, instrument_mask_.cols, instrument_mask_.rows);
+  return !window.empty() && cv::countNonZero(instrument_mask_(window)) > 0;
+}
+
 bool FeatureTracker::ReidentifyAfterInstrument() const {
   return options_.reidentify.enabled && options_.reidentify.after_instrument &&
          options_.instruments.enabled;

@@ -94,6 +94,7 @@ TEST(DebugRecorder, ProjectionsMatchTheCamera) {
   for (size_t row = 0; row < p0.size(); ++row) {
     const auto& f = rec["features"][row];
     EXPECT_EQ(f["id"], fixture::IdOfRow(static_cast<int>(row)));
+    EXPECT_EQ(f["window_on_instrument"], false);  // no instrument in this scene
     if (static_cast<int>(row) == fixture::kUnattachedRow) {
       EXPECT_FALSE(f.contains("target_px"));
       EXPECT_EQ(f["lift"], "not-attached");

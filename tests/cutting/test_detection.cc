@@ -1012,6 +1012,43 @@ TEST(CutDetector, OnlyOpeningPairsAreOutliers) {
   }
 }
 
+// The same jump with the feature marked occluded (an instrument in its tracking window): none
+// of its pairs is an outlier while the mark holds, and its mu still counts in the mean; without
+// the mark, or with ignore_occluded_pairs off, the opening pairs are outliers again.
+TEST(CutDetector, PairsOfAnOccludedFeatureAreNoOutliers) {
+  const FeatureGrid g = MakeGrid(12, 12, 4.8);
+  const int moved = 5 * 12 + 5;
+  RowMatX3d target = g.p0;
+  target(moved, 0) += 3.0;
+  auto outliers = [&](bool ignore, bool marked, DetectionResult* r) {
+    CutDetectorOptions o;
+    o.ignore_occluded_pairs = ignore;
+    o.min_outlier_measure_mm = 0.0;
+    CutDetector detector(o);
+    detector.Initialize(g.p0, g.ids);
+    FrameFeatures frame = MakeFrame(g, target, g.p0);
+    if (marked) {
+      frame.occluded.assign(g.ids.size(), 0);
+      frame.occluded[moved] = 1;
+    }
+    detector.Update(frame, r);
+    return r->outliers.size();
+  };
+  DetectionResult plain, ignored, kept;
+  const size_t by_default = outliers(true, false, &plain);
+  EXPECT_GT(by_default, 3u);
+  EXPECT_EQ(outliers(true, true, &ignored), 0u);
+  EXPECT_EQ(ignored.mean_measure, plain.mean_measure);
+  EXPECT_EQ(outliers(false, true, &kept), by_default);
+  // A mark per row or none.
+  CutDetector detector;
+  detector.Initialize(g.p0, g.ids);
+  FrameFeatures bad = MakeFrame(g, target, g.p0);
+  bad.occluded.assign(3, 0);
+  DetectionResult r;
+  EXPECT_THROW(detector.Update(bad, &r), Error);
+}
+
 // One feature slides on the image (0.5 mm per frame, too slow for a jump filter) away from its
 // neighbours at -x while the model stays: every pair towards them opens, a star of outliers
 // around one feature. By default that is no cut; without the lone-feature test it is one. The

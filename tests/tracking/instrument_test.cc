@@ -199,6 +199,44 @@ TEST(InstrumentRejection, AMetalBarMovingOverTissueLosesItsFeaturesAndTissueKeep
   EXPECT_GE(on.tissue_far_kept, off.tissue_far_kept - 2);
 }
 
+// A window holds the bar when any mask pixel lies in the lk.window_px square around the point:
+// the tip of the bar is at (200, 170) pointing left (angle 0), so the bar covers x >= 200,
+// |y - 170| <= 30, and the mask's margin widens it by margin_px.
+TEST(InstrumentRejection, WindowOnInstrumentIsTheMaskInTheTrackingWindow) {
+  const Bar bar{{200, 170}, 0};
+  cv::Mat image = Tissue(0, 0);
+  DrawBar(bar, &image);
+  FeatureTrackerOptions options;
+  options.instruments.enabled = true;
+  FeatureTracker tracker(options);
+  tracker.Initialize(image);
+  const cv::Mat& mask = tracker.instrument_mask();
+  ASSERT_FALSE(mask.empty());
+  const int half = options.lk.window_px / 2;
+  // Against the mask itself, at every 3rd pixel of a region around the tip.
+  int checked = 0, on = 0;
+  for (int y = 100; y < 240; y += 3)
+    for (int x = 120; x < 280; x += 3) {
+      const cv::Rect window = cv::Rect(x - half, y - half, 2 * half + 1, 2 * half + 1) &
+                              cv::Rect(0, 0, mask.cols, mask.rows);
+      const bool expected = cv::countNonZero(mask(window)) > 0;
+      EXPECT_EQ(tracker.WindowOnInstrument(cv::Point2f(x, y)), expected) << x << ", " << y;
+      ++checked;
+      on += expected;
+    }
+  EXPECT_GT(on, checked / 10);
+  EXPECT_LT(on, checked - checked / 10);
+  // Geometry: on the bar, and just beside it within half a window; tissue far from it.
+  EXPECT_TRUE(tracker.WindowOnInstrument(cv::Point2f(260, 170)));
+  EXPECT_TRUE(tracker.WindowOnInstrument(cv::Point2f(260, 170 + 30 + half - 1)));
+  EXPECT_FALSE(tracker.WindowOnInstrument(cv::Point2f(260, 170 + 30 + half + 20)));
+  EXPECT_FALSE(tracker.WindowOnInstrument(cv::Point2f(100, 170)));
+  // Without instrument rejection there is no mask: never.
+  FeatureTracker plain{FeatureTrackerOptions()};
+  plain.Initialize(image);
+  EXPECT_FALSE(plain.WindowOnInstrument(cv::Point2f(260, 170)));
+}
+
 // The ROI still rules: features are detected and followed only inside it and off the mask, and
 // the caller's ROI image is left as it was.
 TEST(InstrumentRejection, TheRoiIsKeptAndLeftUnchanged) {

@@ -172,7 +172,8 @@ nlohmann::json MakeFrameRecord(const pipeline::FrameState& frame, const PinholeC
                           {"lift", LiftStatusName(v.lift_status)},
                           {"alive", v.alive},
                           {"spring_active", v.spring_active},
-                          {"spring_length_mm", Round(v.spring_length_mm, 1e4)}};
+                          {"spring_length_mm", Round(v.spring_length_mm, 1e4)},
+                          {"window_on_instrument", v.window_on_instrument}};
       const bool has_target = v.attached;
       if (has_target && frame.targets_mm &&
           static_cast<Eigen::Index>(r) < frame.targets_mm->rows()) {

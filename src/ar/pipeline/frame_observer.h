@@ -37,6 +37,9 @@ struct FeatureView {
   // Where the tracker has it now (last position when lost).
   Eigen::Vector2d pixel = Eigen::Vector2d::Zero();
   TrackStatus track_status = TrackStatus::kTracked;  // this frame (final once not kTracked)
+  // Its tracking window overlaps the instrument mask this frame (FeatureTracker::
+  // WindowOnInstrument): its pairs are no evidence of a cut (cutting.ignore_occluded_pairs).
+  bool window_on_instrument = false;
   lift::LiftStatus lift_status = lift::LiftStatus::kNotAttached;
   bool alive = false;  // tracked and attached: its spring acts
   int spring = -1;     // SpringEnergy id, -1 when never attached to the organ

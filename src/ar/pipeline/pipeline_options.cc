@@ -248,6 +248,7 @@ void ReadCutting(const Scene& scene, CuttingStageOptions* o) {
   r.Optional("cut_point_radius_mm", &o->detector.cut_point_radius_mm);
   r.OptionalEnum("measure", cutting::kCutMeasureNames, &o->detector.measure);
   r.Optional("require_opening", &o->detector.require_opening);
+  r.Optional("ignore_occluded_pairs", &o->detector.ignore_occluded_pairs);
   r.Optional("cluster_outliers", &o->detector.cluster_outliers);
   r.Optional("min_opening_balance", &o->detector.min_opening_balance);
   r.Optional("min_opening_balance_bridges", &o->detector.min_opening_balance_bridges);
@@ -402,6 +403,7 @@ nlohmann::json PipelineOptionsToJson(const PipelineOptions& o) {
       {"cut_point_radius_mm", o.cutting.detector.cut_point_radius_mm},
       {"measure", NameOf(cutting::kCutMeasureNames, o.cutting.detector.measure)},
       {"require_opening", o.cutting.detector.require_opening},
+      {"ignore_occluded_pairs", o.cutting.detector.ignore_occluded_pairs},
       {"cluster_outliers", o.cutting.detector.cluster_outliers},
       {"min_opening_balance", o.cutting.detector.min_opening_balance},
       {"min_opening_balance_bridges", o.cutting.detector.min_opening_balance_bridges},

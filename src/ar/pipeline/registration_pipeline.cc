@@ -286,6 +286,8 @@ std::vector<const FeatureState*> FollowTracks(const FeatureTracker& tracker,
     FeatureView& v = (*features)[it->second];
     v.pixel = Eigen::Vector2d(f.position_px.x, f.position_px.y);
     v.track_status = f.status;
+    v.window_on_instrument =
+        f.status == TrackStatus::kTracked && tracker.WindowOnInstrument(f.position_px);
     pixels->row(it->second) = v.pixel.transpose();
     if (f.status != TrackStatus::kTracked && (*tracked)[it->second]) {
       ++stats->lost;
@@ -346,7 +348,7 @@ void StepMechanics(ThinSystem* generalised, mechanics::ImplicitEulerIntegrator* 
 }
 
 // Detect: the detector's input, the features with an active spring (ids = feature rows) with
-// their targets and their anchors on the model.
+// their targets, their anchors on the model and whether an instrument lies in their window.
 cutting::FrameFeatures DetectorInput(const std::vector<FeatureView>& features,
                                      const RowMatX3d& targets, const RowMatX3d& anchors) {
   cutting::FrameFeatures ff;
@@ -354,9 +356,11 @@ cutting::FrameFeatures DetectorInput(const std::vector<FeatureView>& features,
     if (features[r].spring_active) ff.ids.push_back(static_cast<int>(r));
   ff.target_mm.resize(ff.ids.size(), 3);
   ff.model_mm.resize(ff.ids.size(), 3);
+  ff.occluded.resize(ff.ids.size());
   for (size_t i = 0; i < ff.ids.size(); ++i) {
     ff.target_mm.row(i) = targets.row(ff.ids[i]);
     ff.model_mm.row(i) = anchors.row(ff.ids[i]);
+    ff.occluded[i] = features[ff.ids[i]].window_on_instrument ? 1 : 0;
   }
   return ff;
 }
