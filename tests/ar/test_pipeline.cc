@@ -669,7 +669,7 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_TRUE(o.render.wireframe);
   EXPECT_EQ(o.tracking.max_features, 500);
   // weaker points fill a weakly textured organ up to 200 features.
-  EXPECT_EQ(o.tracking.min_features, 200);
+  EXPECT_EQ(o.tracking.min_features, 350);
   EXPECT_DOUBLE_EQ(o.tracking.min_hessian_threshold, 0.5);
   scene.tracking = {{"min_features", 0}, {"min_hessian_threshold", 2.0}};
   EXPECT_EQ(ReadPipelineOptions(scene).tracking.min_features, 0);

@@ -319,7 +319,7 @@ void ReadOutput(const Scene& scene, OutputStageOptions* o) {
 PipelineOptions ReadPipelineOptions(const Scene& scene) {
   PipelineOptions o;
   o.tracking.max_features = 500;
-  o.tracking.min_features = 200;
+  o.tracking.min_features = 350;
   // Video frames are BGR: features on instruments are dropped (docs/instruments.md).
   o.tracking.instruments.enabled = true;
   ReadTracking(scene, &o.tracking, &o);
