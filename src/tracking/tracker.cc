@@ -56,10 +56,12 @@ void FeatureTracker::PrepareFrame(const cv::Mat& image, const cv::Mat& roi_mask)
     gray_ = image;
   }
   instrument_mask_.release();
+  instrument_in_frame_ = false;
   free_roi_ = roi_mask;
   if (options_.instruments.enabled && !bgr_.empty()) {
     instrument_mask_ = InstrumentMask(bgr_, options_.instruments.mask);
-    if (cv::countNonZero(instrument_mask_) > 0) {
+    instrument_in_frame_ = cv::countNonZero(instrument_mask_) > 0;
+    if (instrument_in_frame_) {
       // A new buffer: free_roi_ shares the caller's ROI until here.
       cv::Mat free;
       cv::bitwise_not(instrument_mask_, free);

@@ -380,6 +380,7 @@ class FeatureTracker {
   // Instrument rejection: the current frame's mask, and the ROI without it (where features
   // may be detected and re-identified; the ROI itself when there is no mask).
   cv::Mat instrument_mask_, free_roi_;
+  bool instrument_in_frame_ = false;  // instrument_mask_ has a pixel set this frame
   bool OnInstrument(cv::Point2f p) const;
   // Marks the features of current_ that ride an instrument (RigidInstrumentMotion) kInstrument.
   void RejectRigidInstrumentMotion();

@@ -114,7 +114,7 @@ void FeatureTracker::RejectRigidInstrumentMotion() {
 }
 
 bool FeatureTracker::WindowOnInstrument(cv::Point2f p) const {
-  if (instrument_mask_.empty()) return false;
+  if (!instrument_in_frame_) return false;
   const int half = options_.lk.window_px / 2;
   const int cx = static_cast<int>(std::lround(p.x)), cy = static_cast<int>(std::lround(p.y));
   const cv::Rect window = cv::Rect(cx - half, cy - half, 2 * half + 1, 2 * half + 1) &

@@ -668,7 +668,7 @@ TEST(Pipeline, OptionsRejectUnknownKeysAndBadValues) {
   EXPECT_DOUBLE_EQ(o.render.organ_opacity, 0.5);
   EXPECT_TRUE(o.render.wireframe);
   EXPECT_EQ(o.tracking.max_features, 500);
-  // weaker points fill a weakly textured organ up to 200 features.
+  // weaker points fill a weakly textured organ up to 350 features.
   EXPECT_EQ(o.tracking.min_features, 350);
   EXPECT_DOUBLE_EQ(o.tracking.min_hessian_threshold, 0.5);
   scene.tracking = {{"min_features", 0}, {"min_hessian_threshold", 2.0}};
