@@ -7,6 +7,7 @@
 #include "commands.h"
 #include "core/error.h"
 #include "core/version.h"
+#include "mechanics/blas_binding.h"
 #include "option_parser.h"
 
 namespace {
@@ -53,6 +54,9 @@ int main(int argc, char** argv) {
   }
   if (name == "--version") {
     std::printf("arreg %s\n", arreg::kVersion);
+    std::printf(
+        "blas: %s\n",
+        arreg::mechanics::DescribeBlasBinding(arreg::mechanics::ProbeBlasBinding()).c_str());
     return 0;
   }
   for (const auto& c : kCommands) {

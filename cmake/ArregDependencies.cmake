@@ -16,7 +16,20 @@ target_link_libraries(arreg_cholmod INTERFACE "${CHOLMOD_LIBRARY}")
 find_package(OpenMP REQUIRED COMPONENTS CXX)
 target_link_libraries(arreg_cholmod INTERFACE ${OpenMP_CXX_LIBRARIES})
 find_package(CGAL 5.5 REQUIRED)
+# ATLAS's libf77blas, when an executable names it, comes before libblas.so.3 in the dynamic
+# linker's search order: its Fortran BLAS symbols (dtrsv_, dgemm_, ...) then shadow the system
+# BLAS (OpenBLAS through Debian's alternatives, scripts/install-deps) for every library of the
+# process, CHOLMOD included. Two places would name it: Debian's Ceres exports libf77blas and
+# libatlas on its own link line, and its CMake config runs FindBLAS again for SuiteSparse, which
+# prefers ATLAS when ATLAS is installed (Ceres' package pulls it in). Ceres calls only the
+# standard BLAS and LAPACK interfaces: link the alternatives-managed libblas.so.3 and
+# liblapack.so.3 (the generic vendor) and drop the ATLAS names. Tests: BlasBinding.*,
+# Cli.VersionNamesTheBlasAndItIsLibblas.
+set(BLA_VENDOR Generic)
 find_package(Ceres 2.0 REQUIRED)
+get_target_property(_arreg_ceres_libs Ceres::ceres INTERFACE_LINK_LIBRARIES)
+list(FILTER _arreg_ceres_libs EXCLUDE REGEX "/lib(f77blas|atlas)\\.so")
+set_target_properties(Ceres::ceres PROPERTIES INTERFACE_LINK_LIBRARIES "${_arreg_ceres_libs}")
 if(ARREG_BUILD_TESTS)
   find_package(GTest REQUIRED)
 endif()

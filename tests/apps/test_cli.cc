@@ -66,6 +66,17 @@ TEST_F(Cli, VersionPrintsTheProjectVersion) {
   EXPECT_EQ(r.output.rfind("arreg ", 0), 0u) << r.output;
 }
 
+// The binary's BLAS symbols bind to the system's libblas.so.3 (OpenBLAS after
+// install-deps), not to a library on Ceres' link line that exports the same names.
+TEST_F(Cli, VersionNamesTheBlasAndItIsLibblas) {
+  const Result r = RunArreg("--version");
+  EXPECT_EQ(r.exit_code, 0);
+  const size_t at = r.output.find("\nblas: ");
+  ASSERT_NE(at, std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("shadows"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("none loaded"), std::string::npos) << r.output;
+}
+
 TEST_F(Cli, WrongUsageExitsTwoWithOneLineNamingTheOption) {
   Result r = RunArreg("run --no-such-option");
   EXPECT_EQ(r.exit_code, 2);
