@@ -50,6 +50,8 @@ struct ShellFigures {
   double ms_per_step_with_fine_median = 0;
   double assembly_ms_median = 0, solve_ms_median = 0;
   int newton_iterations = 0;
+  double factorizations_per_step = 0;  // numeric Cholesky factorisations / timed steps
+  double cg_iterations_per_step = 0;   // CG iterations / timed steps (cg, cholmod-pcg)
 };
 
 // A sheet of nx x ny square cells (two triangles each) in the xy plane,
@@ -155,8 +157,12 @@ ShellFigures RunSheet(const ShellBenchSettings& s) {
       assembly_ms.push_back(summary.assembly_ms);
       solve_ms.push_back(summary.solve_ms);
       f.newton_iterations += summary.newton_iterations;
+      f.factorizations_per_step += summary.factorizations;
+      f.cg_iterations_per_step += summary.linear_iterations;
     }
   }
+  f.factorizations_per_step /= static_cast<double>(step_ms.size());
+  f.cg_iterations_per_step /= static_cast<double>(step_ms.size());
   f.ms_per_step_median = Median(step_ms);
   f.mapping_ms_median = Median(map_ms);
   f.cpu_ms_per_step_median = Median(cpu_ms);
@@ -182,6 +188,8 @@ nlohmann::json ToJson(const ShellFigures& f) {
           {"cpu_element_ms_median", f.cpu_element_ms_median},
           {"assembly_ms_median", f.assembly_ms_median},
           {"solve_ms_median", f.solve_ms_median},
+          {"factorizations_per_step", f.factorizations_per_step},
+          {"cg_iterations_per_step", f.cg_iterations_per_step},
           {"mapping_ms_median", f.mapping_ms_median},
           {"ms_per_step_with_fine_median", f.ms_per_step_with_fine_median}};
 }
@@ -189,10 +197,12 @@ nlohmann::json ToJson(const ShellFigures& f) {
 void Print(const ShellFigures& f) {
   std::printf(
       "%6d elements %6d dofs: %8.3f ms/step (cpu %.3f, of which elements %.3f; assembly %.3f, "
-      "solve %.3f) | fine %6d tris: mapping %.3f ms (cpu %.3f), total %8.3f ms\n",
+      "solve %.3f; %.2f factorisations, %.1f CG iterations per step) | fine %6d tris: mapping "
+      "%.3f ms (cpu %.3f), total %8.3f ms\n",
       f.elements, f.dofs, f.ms_per_step_median, f.cpu_ms_per_step_median, f.cpu_element_ms_median,
-      f.assembly_ms_median, f.solve_ms_median, f.fine_triangles, f.mapping_ms_median,
-      f.cpu_mapping_ms_median, f.ms_per_step_with_fine_median);
+      f.assembly_ms_median, f.solve_ms_median, f.factorizations_per_step, f.cg_iterations_per_step,
+      f.fine_triangles, f.mapping_ms_median, f.cpu_mapping_ms_median,
+      f.ms_per_step_with_fine_median);
 }
 
 }  // namespace
@@ -226,7 +236,8 @@ int RunBenchShell(int argc, char** argv) {
       "factorisation + solve, wall), cpu_ms_per_step_median (thread CPU), cpu_element_ms_median\n"
       "(the shell's element work alone), assembly_ms_median, solve_ms_median,\n"
       "mapping_ms_median and cpu_mapping_ms_median (fine positions + velocities + force\n"
-      "projection), ms_per_step_with_fine_median (step + mapping).\n"
+      "projection), ms_per_step_with_fine_median (step + mapping), factorizations_per_step\n"
+      "and cg_iterations_per_step.\n"
       "--sweep adds \"sweep\" and \"growth_exponent\". Run with OMP_NUM_THREADS=1.");
   if (!parser.Parse(argc, argv)) return 0;
   auto require = [](bool ok, const std::string& option, const std::string& message) {

@@ -697,6 +697,8 @@ double BezierShell::ElementEnergy(const GeneralisedState& state, int element,
 }
 
 double BezierShell::Value(const GeneralisedState& state) const {
+  if (static_cast<int>(cached_gradient_.size()) == num_elements() && cached_state_.Matches(state))
+    return cached_energy_;
   double sum = 0;
   for (int e = 0; e < num_elements(); ++e) sum += ElementEnergy(state, e);
   return sum;
@@ -709,8 +711,9 @@ void BezierShell::CacheDerivatives(const GeneralisedState& state) const {
     return;
   cached_gradient_.resize(elements_.size());
   cached_hessian_.resize(elements_.size());
+  cached_energy_ = 0;
   for (int e = 0; e < num_elements(); ++e)
-    ElementEnergy(state, e, &cached_gradient_[e], &cached_hessian_[e]);
+    cached_energy_ += ElementEnergy(state, e, &cached_gradient_[e], &cached_hessian_[e]);
   cached_state_.Take(state);
 }
 

@@ -113,8 +113,8 @@ class BezierShell : public GeneralisedEnergyTerm, public InertiaSource {
   std::string name() const override { return "bezier_shell"; }
   void AppendStencils(std::vector<std::vector<int>>* stencils) const override;
   // The first of AddGradient / AddHessian at a state computes every element's
-  // gradient and Hessian; the other (and repeats) at the same positions and
-  // rotations reuse them. Update only drops them.
+  // gradient and Hessian, and the energy; the other, repeats and Value at the
+  // same positions and rotations reuse them. Update only drops them.
   void Update(const GeneralisedState& state) override;
   double Value(const GeneralisedState& state) const override;
   void AddGradient(const GeneralisedState& state, Eigen::VectorXd* gradient) const override;
@@ -173,7 +173,8 @@ class BezierShell : public GeneralisedEnergyTerm, public InertiaSource {
 
   BezierShellOptions options_;
   std::vector<Element> elements_;
-  // Element derivatives at cached_state_ (its positions and rotations).
+  // Element derivatives and the total energy at cached_state_ (its positions and rotations).
+  mutable double cached_energy_ = 0;
   mutable std::vector<Eigen::Matrix<double, 18, 1>> cached_gradient_;
   mutable std::vector<Eigen::Matrix<double, 18, 18>> cached_hessian_;
   mutable StateSnapshot cached_state_;

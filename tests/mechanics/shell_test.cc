@@ -131,6 +131,26 @@ TEST(BezierShell, GradientMatchesFiniteDifferencesFarFromIdentity) {
   }
 }
 
+// Value reuses the energy computed with the cached derivatives only at the
+// cached state: the same sum of element energies there, a fresh one elsewhere.
+TEST(BezierShell, ValueUsesTheDerivativeCacheOnlyAtItsState) {
+  const Patch p = CurvedPatch();
+  GeneralisedState state = MakeState(p.positions, p.rotations);
+  const BezierShell shell(state, p.triangles, Material());
+  DeformAndMove(&state, 0.06, kRot90, Eigen::Vector3d(1, 2, 3), 5);
+  double sum = 0;
+  for (int e = 0; e < shell.num_elements(); ++e) sum += shell.ElementEnergy(state, e);
+  Gradient(shell, state);  // fills the cache
+  EXPECT_EQ(shell.Value(state), sum);
+  GeneralisedState moved = state;
+  moved.mutable_rotation(4) = ExpSO3(Eigen::Vector3d(0, 0.01, 0)) * moved.rotation(4);
+  double moved_sum = 0;
+  for (int e = 0; e < shell.num_elements(); ++e) moved_sum += shell.ElementEnergy(moved, e);
+  EXPECT_NE(moved_sum, sum);
+  EXPECT_EQ(shell.Value(moved), moved_sum);
+  EXPECT_EQ(shell.Value(state), sum);
+}
+
 TEST(BezierShell, ExactHessianMatchesFiniteDifferencesAndIsSymmetric) {
   const Patch p = CurvedPatch();
   GeneralisedState state = MakeState(p.positions, p.rotations);
