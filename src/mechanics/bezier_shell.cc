@@ -172,7 +172,7 @@ void FrameDerivatives(const BezierShell::Element& el, const Kinematics& k,
       s(0, 0) + s(1, 1);
   const Eigen::Matrix3d inv = sylvester.inverse();
   Eigen::Matrix<double, 3, 9> dc;
-  for (int i = 0; i < 3; ++i) {
+  for (Eigen::Index i = 0; i < 3; ++i) {
     dc.block<1, 3>(0, 3 * i) = 2 * beta(i, 0) * k.A.col(0).transpose();
     dc.block<1, 3>(1, 3 * i) = 2 * beta(i, 1) * k.A.col(1).transpose();
     dc.block<1, 3>(2, 3 * i) = (beta(i, 0) * k.A.col(1) + beta(i, 1) * k.A.col(0)).transpose();
@@ -188,7 +188,7 @@ void FrameDerivatives(const BezierShell::Element& el, const Kinematics& k,
   w->block<3, 3>(0, 3) = -tb;
   w->block<3, 3>(0, 6) = ta;
   const double tr = s(0, 0) + s(1, 1);
-  for (int i = 0; i < 3; ++i)
+  for (Eigen::Index i = 0; i < 3; ++i)
     w->block<3, 3>(0, 3 * i) += n * ((beta(i, 0) * u2 - beta(i, 1) * u1).transpose() / tr);
 }
 
@@ -197,12 +197,13 @@ Eigen::Matrix<double, 12, 18> XiJacobian(const BezierShell::Element& el, const K
   Eigen::Matrix<double, 3, 9> m, w;
   FrameDerivatives(el, k, &m, &w);
   Eigen::Matrix<double, 12, 18> b = Eigen::Matrix<double, 12, 18>::Zero();
-  for (int i = 0; i < 3; ++i) b.block<3, 3>(0, 6 * i) = m.block<3, 3>(0, 3 * i);
-  for (int c = 0; c < 3; ++c) {
+  for (Eigen::Index i = 0; i < 3; ++i) b.block<3, 3>(0, 6 * i) = m.block<3, 3>(0, 3 * i);
+  for (Eigen::Index c = 0; c < 3; ++c) {
     // Exp(d) Q = Exp(Log Q + J_l^-1(Log Q) d): d = R_e^T (dphi_c - omega).
     const Eigen::Matrix3d p = LeftJacobianInverseSO3(k.psi[c]) * k.frame.transpose();
     b.block<3, 3>(3 + 3 * c, 6 * c + 3) = p;
-    for (int i = 0; i < 3; ++i) b.block<3, 3>(3 + 3 * c, 6 * i) -= p * w.block<3, 3>(0, 3 * i);
+    for (Eigen::Index i = 0; i < 3; ++i)
+      b.block<3, 3>(3 + 3 * c, 6 * i) -= p * w.block<3, 3>(0, 3 * i);
   }
   return b;
 }
@@ -524,15 +525,15 @@ void BezierShell::ReplaceElements(const GeneralisedState& state,
 
     // Linear map L: xi -> control point displacements in the element frame (30).
     Eigen::Matrix<double, 30, 12> lmap = Eigen::Matrix<double, 30, 12>::Zero();
-    for (int i = 0; i < 3; ++i) {  // corners: (S - I) X_i
+    for (Eigen::Index i = 0; i < 3; ++i) {  // corners: (S - I) X_i
       const double cx = el.rest_local(i, 0), cy = el.rest_local(i, 1);
       lmap(3 * i, 0) = cx;
       lmap(3 * i, 2) = cy;
       lmap(3 * i + 1, 1) = cy;
       lmap(3 * i + 1, 2) = cx;
     }
-    for (int j = 0; j < 6; ++j) {  // edges: corner + (S3 - I) a + psi x a
-      const int i = kEdgeOwner[j], r = 3 * (3 + j);
+    for (Eigen::Index j = 0; j < 6; ++j) {  // edges: corner + (S3 - I) a + psi x a
+      const Eigen::Index i = kEdgeOwner[j], r = 3 * (3 + j);
       const Eigen::Vector3d& at = el.attachment[j];
       lmap.middleRows<3>(r) = lmap.middleRows<3>(3 * i);
       lmap(r, 0) += at.x();
@@ -548,8 +549,9 @@ void BezierShell::ReplaceElements(const GeneralisedState& state,
       lmap(r + 1, 3 + 3 * i) = 0;
     }
     lmap.middleRows<3>(27).setZero();  // centre: seed eq. 7
-    for (int j = 0; j < 6; ++j) lmap.middleRows<3>(27) += 0.25 * lmap.middleRows<3>(3 * (3 + j));
-    for (int i = 0; i < 3; ++i) lmap.middleRows<3>(27) -= lmap.middleRows<3>(3 * i) / 6.0;
+    for (Eigen::Index j = 0; j < 6; ++j)
+      lmap.middleRows<3>(27) += 0.25 * lmap.middleRows<3>(3 * (3 + j));
+    for (Eigen::Index i = 0; i < 3; ++i) lmap.middleRows<3>(27) -= lmap.middleRows<3>(3 * i) / 6.0;
 
     // Membrane: Bezier stiffness on the 30 control point displacements (seed
     // eq. 24-29), derivatives in the rest surface's own (isoparametric)
@@ -588,7 +590,7 @@ void BezierShell::ReplaceElements(const GeneralisedState& state,
       }
       Eigen::Matrix<double, 3, 30> bm = Eigen::Matrix<double, 3, 30>::Zero();
       Eigen::Matrix<double, 3, 30> bb = Eigen::Matrix<double, 3, 30>::Zero();
-      for (int k = 0; k < 10; ++k) {
+      for (Eigen::Index k = 0; k < 10; ++k) {
         bm(0, 3 * k) = nx(0, k);
         bm(1, 3 * k + 1) = nx(1, k);
         bm(2, 3 * k) = nx(1, k);
@@ -733,7 +735,7 @@ bool StateSnapshot::Matches(const GeneralisedState& state) const {
 void BezierShell::AddGradient(const GeneralisedState& state, Eigen::VectorXd* gradient) const {
   CacheDerivatives(state);
   for (int e = 0; e < num_elements(); ++e)
-    for (int i = 0; i < 3; ++i)
+    for (Eigen::Index i = 0; i < 3; ++i)
       gradient->segment<6>(state.dof_offset(elements_[e].nodes[i])) +=
           cached_gradient_[e].segment<6>(6 * i);
 }
@@ -742,8 +744,8 @@ void BezierShell::AddHessian(const GeneralisedState& state, double scale, Hessia
   CacheDerivatives(state);
   for (int e = 0; e < num_elements(); ++e) {
     const Eigen::Vector3i& nodes = elements_[e].nodes;
-    for (int a = 0; a < 3; ++a)
-      for (int b = a; b < 3; ++b)
+    for (Eigen::Index a = 0; a < 3; ++a)
+      for (Eigen::Index b = a; b < 3; ++b)
         sink->AddBlock(nodes[a], nodes[b], cached_hessian_[e].block<6, 6>(6 * a, 6 * b), scale);
   }
 }
@@ -770,12 +772,12 @@ void BezierShell::ControlPoints(const GeneralisedState& state, int element,
     FrameDerivatives(el, k, &m, &w);
     jacobian->setZero();
   }
-  for (int i = 0; i < 3; ++i) {
+  for (Eigen::Index i = 0; i < 3; ++i) {
     points->row(i) = state.position(el.nodes[i]).transpose();
     if (jacobian) jacobian->block<3, 3>(3 * i, 6 * i).setIdentity();
   }
-  for (int j = 0; j < 6; ++j) {
-    const int i = kEdgeOwner[j], r = 3 * (3 + j);
+  for (Eigen::Index j = 0; j < 6; ++j) {
+    const Eigen::Index i = kEdgeOwner[j], r = 3 * (3 + j);
     const Eigen::Vector3d& at = el.attachment[j];
     const Eigen::Vector3d stretched(k.S(0, 0) * at.x() + k.S(0, 1) * at.y(),
                                     k.S(0, 1) * at.x() + k.S(1, 1) * at.y(), at.z());
@@ -792,7 +794,8 @@ void BezierShell::ControlPoints(const GeneralisedState& state, int element,
       g(0, 2) = at.y();
       g(1, 2) = at.x();
       const Eigen::Matrix<double, 3, 9> ds = link * g * m;
-      for (int c = 0; c < 3; ++c) jacobian->block<3, 3>(r, 6 * c) += ds.block<3, 3>(0, 3 * c);
+      for (Eigen::Index c = 0; c < 3; ++c)
+        jacobian->block<3, 3>(r, 6 * c) += ds.block<3, 3>(0, 3 * c);
     }
   }
   points->row(9) =
@@ -801,7 +804,8 @@ void BezierShell::ControlPoints(const GeneralisedState& state, int element,
     jacobian->middleRows<3>(27).setZero();
     for (int j = 0; j < 6; ++j)
       jacobian->middleRows<3>(27) += 0.25 * jacobian->middleRows<3>(9 + 3 * j);
-    for (int i = 0; i < 3; ++i) jacobian->middleRows<3>(27) -= jacobian->middleRows<3>(3 * i) / 6.0;
+    for (Eigen::Index i = 0; i < 3; ++i)
+      jacobian->middleRows<3>(27) -= jacobian->middleRows<3>(3 * i) / 6.0;
   }
 }
 

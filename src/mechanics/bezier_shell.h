@@ -154,6 +154,8 @@ class BezierShell : public GeneralisedEnergyTerm, public InertiaSource {
                        Eigen::Matrix<double, 18, 18>* hessian = nullptr) const;
 
   // Internal per-element data (public so the implementation's helpers see it).
+  // clang-tidy flags the array index (__i0) of the implicit copy of the array members.
+  // NOLINTNEXTLINE(bugprone-reserved-identifier)
   struct Element {
     Eigen::Vector3i nodes;
     Eigen::Matrix3d rest_frame;               // R_e0 (columns: element axes in world)
