@@ -2,12 +2,23 @@
 #
 # Module layering (who may link whom). A module may depend only on the modules
 # listed for it; arreg_add_module() fails the configure step otherwise, so a
-# cycle or an upward include cannot creep in.
+# cycle cannot creep in. A module's sources see only its own headers and those of
+# the modules it depends on (directly or below): each module publishes its folder
+# through an include root of its own (below), so an upward include fails to compile.
+# Module ar_X is the folder src/ar/X/.
 set(ARREG_ALLOWED_DEPS_core "")
 set(ARREG_ALLOWED_DEPS_tracking "core")
 set(ARREG_ALLOWED_DEPS_mechanics "core")
 set(ARREG_ALLOWED_DEPS_cutting "core;mechanics")
-set(ARREG_ALLOWED_DEPS_ar "core;tracking;mechanics;cutting")
+# src/ar/: rendering and lifting below the pipeline; synthetic scenes and evaluation beside
+# it; the frame-by-frame viewer above it; the initial alignment (Ceres) on its own.
+set(ARREG_ALLOWED_DEPS_ar_render "core")
+set(ARREG_ALLOWED_DEPS_ar_lift "core")
+set(ARREG_ALLOWED_DEPS_ar_pipeline "core;tracking;mechanics;cutting;ar_render;ar_lift")
+set(ARREG_ALLOWED_DEPS_ar_synth "core;tracking;ar_render")
+set(ARREG_ALLOWED_DEPS_ar_eval "core;ar_render")
+set(ARREG_ALLOWED_DEPS_ar_debug "core;ar_render;ar_pipeline")
+set(ARREG_ALLOWED_DEPS_ar_align "core;tracking")
 
 function(arreg_set_common_options target)
   target_compile_options(${target} PRIVATE
@@ -51,7 +62,15 @@ function(arreg_add_module name)
   endforeach()
   add_library(arreg_${name} STATIC ${ARG_SOURCES})
   add_library(arreg::${name} ALIAS arreg_${name})
-  target_include_directories(arreg_${name} PUBLIC "${PROJECT_SOURCE_DIR}/src")
+  # The module's include root: <build>/arreg-include/<name>/<folder> is a link to
+  # src/<folder>, so "core/mesh.h" or "ar/render/rasterizer.h" resolve only for
+  # the module itself and for the modules that link it.
+  string(REPLACE "_" "/" folder "${name}")
+  set(root "${PROJECT_BINARY_DIR}/arreg-include/${name}")
+  get_filename_component(parent "${root}/${folder}" DIRECTORY)
+  file(MAKE_DIRECTORY "${parent}")
+  file(CREATE_LINK "${PROJECT_SOURCE_DIR}/src/${folder}" "${root}/${folder}" SYMBOLIC)
+  target_include_directories(arreg_${name} PUBLIC "${root}")
   target_link_libraries(arreg_${name} PUBLIC ${module_targets} ${ARG_LIBS} PRIVATE ${ARG_PRIVATE_LIBS})
   arreg_set_common_options(arreg_${name})
 endfunction()

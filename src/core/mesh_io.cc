@@ -4,6 +4,7 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <limits>
 #include <ostream>
@@ -287,6 +288,28 @@ void WriteTetMesh(const std::string& path, const TetMesh& mesh, const MeshWriteO
   data.high_order_nodes = mesh.high_order_nodes;
   data.triangles = mesh.triangles;
   WriteAny(path, data, /*volume=*/true, options);
+}
+
+void WriteObjGroups(const std::string& path, const std::vector<SurfaceMesh>& meshes,
+                    const std::vector<std::string>& names, const std::string& what) {
+  WriteFileAtomic(path, [&](std::ostream& out) {
+    out << "# arreg run: " << what << "\n";
+    char line[128];
+    int base = 1;
+    for (size_t k = 0; k < meshes.size(); ++k) {
+      out << "o " << (k < names.size() ? names[k] : "structure" + std::to_string(k)) << "\n";
+      const SurfaceMesh& m = meshes[k];
+      for (int i = 0; i < m.vertices.rows(); ++i) {
+        std::snprintf(line, sizeof(line), "v %.9g %.9g %.9g\n", m.vertices(i, 0), m.vertices(i, 1),
+                      m.vertices(i, 2));
+        out << line;
+      }
+      for (int i = 0; i < m.faces.rows(); ++i)
+        out << "f " << m.faces(i, 0) + base << " " << m.faces(i, 1) + base << " "
+            << m.faces(i, 2) + base << "\n";
+      base += static_cast<int>(m.vertices.rows());
+    }
+  });
 }
 
 void WriteSurfaceMesh(const std::string& path, const SurfaceMesh& mesh,

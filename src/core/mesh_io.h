@@ -4,6 +4,7 @@
 
 #include <map>
 #include <string>
+#include <vector>
 
 #include "core/mesh.h"
 
@@ -77,6 +78,13 @@ void WriteTetMesh(const std::string& path, const TetMesh& mesh,
 // .msh (triangle elements). Atomic like WriteTetMesh.
 void WriteSurfaceMesh(const std::string& path, const SurfaceMesh& mesh,
                       const MeshWriteOptions& options = {});
+
+// Writes several surfaces into one OBJ file, one `o NAME` group each (vertices
+// and faces only, 9 significant digits), after a `# arreg run: WHAT` comment:
+// the internal/NNNNNN.obj and thin/NNNNNN.obj records (docs/run-format.md).
+// A mesh without a name in `names` is called structureK. Atomic like WriteTetMesh.
+void WriteObjGroups(const std::string& path, const std::vector<SurfaceMesh>& meshes,
+                    const std::vector<std::string>& names, const std::string& what);
 
 // Lower-case extension with the dot (".msh"), "" when there is none.
 std::string MeshFileExtension(const std::string& path);

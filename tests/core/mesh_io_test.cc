@@ -226,6 +226,31 @@ TEST(MeshIoRoundTrip, SurfaceExactInEveryFormat) {
   }
 }
 
+// Groups written one after the other: one `o` line each, face indices offset by the
+// vertices before them, so that reading the file back gives the union.
+TEST(MeshIoRoundTrip, ObjGroupsReadBackAsTheirUnion) {
+  const std::string dir = testing::ScratchDir("obj_groups");
+  SurfaceMesh a, b;
+  a.vertices = RowMatX3d(3, 3);
+  a.vertices << 0, 0, 0, 1, 0, 0, 0, 1, 0;
+  a.faces = RowMatX3i(1, 3);
+  a.faces << 0, 1, 2;
+  b.vertices = RowMatX3d(4, 3);
+  b.vertices << 0, 0, 1, 2, 0, 1, 2, 2, 1.25, 0, 2, 1;
+  b.faces = RowMatX3i(2, 3);
+  b.faces << 0, 1, 2, 0, 2, 3;
+  const std::string path = dir + "/groups.obj";
+  WriteObjGroups(path, {a, b}, {"tumour"}, "internal structures");
+  const std::string text = ReadFileToString(path);
+  EXPECT_EQ(text.rfind("# arreg run: internal structures\no tumour\n", 0), 0u) << text;
+  EXPECT_NE(text.find("\no structure1\n"), std::string::npos) << text;
+  const SurfaceMesh u = ReadSurfaceMesh(path);
+  ASSERT_EQ(u.vertices.rows(), 7);
+  ASSERT_EQ(u.faces.rows(), 3);
+  EXPECT_EQ(u.vertices.row(5), b.vertices.row(2));
+  EXPECT_EQ(u.faces.row(2), (Eigen::RowVector3i(3, 5, 6)));
+}
+
 TEST(MeshIoRoundTrip, ObjWithPerCornerUvsAndColours) {
   SurfaceMesh s;
   s.vertices.resize(4, 3);

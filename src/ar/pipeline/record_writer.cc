@@ -54,28 +54,6 @@ nlohmann::json FrameRecord(const FrameState& f) {
   return j;
 }
 
-void WriteInternalObj(const std::string& path, const std::vector<SurfaceMesh>& meshes,
-                      const std::vector<std::string>& names, const std::string& what) {
-  WriteFileAtomic(path, [&](std::ostream& out) {
-    out << "# arreg run: " << what << "\n";
-    char line[128];
-    int base = 1;
-    for (size_t k = 0; k < meshes.size(); ++k) {
-      out << "o " << (k < names.size() ? names[k] : "structure" + std::to_string(k)) << "\n";
-      const SurfaceMesh& m = meshes[k];
-      for (int i = 0; i < m.vertices.rows(); ++i) {
-        std::snprintf(line, sizeof(line), "v %.9g %.9g %.9g\n", m.vertices(i, 0), m.vertices(i, 1),
-                      m.vertices(i, 2));
-        out << line;
-      }
-      for (int i = 0; i < m.faces.rows(); ++i)
-        out << "f " << m.faces(i, 0) + base << " " << m.faces(i, 1) + base << " "
-            << m.faces(i, 2) + base << "\n";
-      base += static_cast<int>(m.vertices.rows());
-    }
-  });
-}
-
 RecordWriter::RecordWriter(std::string out_dir, bool write_png)
     : out_dir_(std::move(out_dir)), write_png_(write_png) {}
 
@@ -139,11 +117,11 @@ void RecordWriter::OnFrame(const FrameState& f) {
     RemoveUnreferencedVertices(&surface);
     WriteSurfaceMesh(FramePath(out_dir_, "surface", f.frame, ".obj"), surface);
     if (f.internal && !f.internal->empty())
-      WriteInternalObj(FramePath(out_dir_, "internal", f.frame, ".obj"), *f.internal,
-                       *f.internal_names);
+      WriteObjGroups(FramePath(out_dir_, "internal", f.frame, ".obj"), *f.internal,
+                     *f.internal_names, "internal structures");
     if (f.thin && !f.thin->empty())
-      WriteInternalObj(FramePath(out_dir_, "thin", f.frame, ".obj"), *f.thin, *f.thin_names,
-                       "thin structures");
+      WriteObjGroups(FramePath(out_dir_, "thin", f.frame, ".obj"), *f.thin, *f.thin_names,
+                     "thin structures");
   }
   if (write_png_ && f.overlay && !f.overlay->empty()) {
     const std::string path = FramePath(out_dir_, "frames", f.frame, ".png");

@@ -12,12 +12,6 @@ namespace arreg::pipeline {
 // One JSON object of frames.jsonl for a frame.
 nlohmann::json FrameRecord(const FrameState& frame);
 
-// Writes OBJ text with one `o name` group per structure (the internal/NNNNNN.obj and
-// thin/NNNNNN.obj format); `what` goes into the header comment.
-void WriteInternalObj(const std::string& path, const std::vector<SurfaceMesh>& meshes,
-                      const std::vector<std::string>& names,
-                      const std::string& what = "internal structures");
-
 class RecordWriter : public FrameObserver {
  public:
   // `out_dir` is created. `write_png` also writes frames/NNNNNN.png of the overlay.

@@ -15,7 +15,6 @@
 
 #include <Eigen/Eigenvalues>
 
-#include "ar/pipeline/record_writer.h"
 #include "ar/render/rasterizer.h"
 #include "ar/synth/scenarios.h"
 #include "ar/synth/tissue_texture.h"
@@ -617,8 +616,8 @@ SynthSummary GenerateSyntheticScene(const SynthOptions& options) {
     if (save_surface) {
       WriteSurfaceMesh(gt + "/surface/" + FrameName(frame, "obj"), CompactSurface(truth.x, faces));
       if (has_thin)
-        pipeline::WriteInternalObj(gt + "/thin/" + FrameName(frame, "obj"), thin_meshes,
-                                   thin_names);
+        WriteObjGroups(gt + "/thin/" + FrameName(frame, "obj"), thin_meshes, thin_names,
+                       "internal structures");
       if (s.has_internal_structure)
         WriteSurfaceMesh(gt + "/internal/" + FrameName(frame, "obj"),
                          CompactSurface(truth.x, BoundaryFaces(truth.tets, internal_tet)));
