@@ -114,6 +114,7 @@ struct VideoReader::Impl {
   VideoReaderOptions options;
   bool open = false;
   int width = 0, height = 0, frame_count = 0;
+  bool size_known = false;  // width and height are the first decoded frame's
   double fps = 0;
   int next_index = 0;  // index of the frame Read() returns next
   bool truncated = false;
@@ -216,6 +217,16 @@ struct VideoReader::Impl {
         if ((frame->flags & AV_FRAME_FLAG_CORRUPT) || frame->decode_error_flags) {
           if (RepeatDamaged() && StandIn()) return true;
           StopWithWarning("damaged frame (decode errors)");
+          return false;
+        }
+        // The video's size is its first frame's (the camera's intrinsics belong to it); a
+        // later frame of another size is damage (a corrupt header can announce a huge
+        // frame, whose conversion would take seconds).
+        if (size_known && (frame->width != width || frame->height != height)) {
+          if (RepeatDamaged() && StandIn()) return true;
+          StopWithWarning("frame size changes from " + std::to_string(width) + "x" +
+                          std::to_string(height) + " to " + std::to_string(frame->width) + "x" +
+                          std::to_string(frame->height));
           return false;
         }
         GoodFrame();
@@ -363,6 +374,7 @@ struct VideoReader::Impl {
                       codec->name, "')");
     width = frame->width;
     height = frame->height;
+    size_known = true;
 
     limited_to_full_lut.create(1, 256, CV_8U);
     for (int i = 0; i < 256; ++i)
