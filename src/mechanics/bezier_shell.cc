@@ -698,9 +698,13 @@ double BezierShell::ElementEnergy(const GeneralisedState& state, int element,
   return energy;
 }
 
+bool BezierShell::CacheHolds(const GeneralisedState& state) const {
+  return static_cast<int>(cached_gradient_.size()) == num_elements() &&
+         cached_state_.Matches(state);
+}
+
 double BezierShell::Value(const GeneralisedState& state) const {
-  if (static_cast<int>(cached_gradient_.size()) == num_elements() && cached_state_.Matches(state))
-    return cached_energy_;
+  if (CacheHolds(state)) return cached_energy_;
   double sum = 0;
   for (int e = 0; e < num_elements(); ++e) sum += ElementEnergy(state, e);
   return sum;
@@ -709,8 +713,7 @@ double BezierShell::Value(const GeneralisedState& state) const {
 void BezierShell::Update(const GeneralisedState&) { cached_state_ = StateSnapshot(); }
 
 void BezierShell::CacheDerivatives(const GeneralisedState& state) const {
-  if (static_cast<int>(cached_gradient_.size()) == num_elements() && cached_state_.Matches(state))
-    return;
+  if (CacheHolds(state)) return;
   cached_gradient_.resize(elements_.size());
   cached_hessian_.resize(elements_.size());
   cached_energy_ = 0;

@@ -170,6 +170,8 @@ class BezierShell : public GeneralisedEnergyTerm, public InertiaSource {
   };
 
  private:
+  // Whether the caches below hold `state`.
+  bool CacheHolds(const GeneralisedState& state) const;
   // Fills the caches below for `state` unless they hold it already.
   void CacheDerivatives(const GeneralisedState& state) const;
 

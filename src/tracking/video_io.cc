@@ -214,19 +214,17 @@ struct VideoReader::Impl {
     for (;;) {
       int r = avcodec_receive_frame(decoder, frame);
       if (r == 0) {
-        if ((frame->flags & AV_FRAME_FLAG_CORRUPT) || frame->decode_error_flags) {
-          if (RepeatDamaged() && StandIn()) return true;
-          StopWithWarning("damaged frame (decode errors)");
-          return false;
-        }
         // The video's size is its first frame's (the camera's intrinsics belong to it); a
         // later frame of another size is damage (a corrupt header can announce a huge
         // frame, whose conversion would take seconds).
-        if (size_known && (frame->width != width || frame->height != height)) {
+        const bool resized = size_known && (frame->width != width || frame->height != height);
+        if (resized || (frame->flags & AV_FRAME_FLAG_CORRUPT) || frame->decode_error_flags) {
           if (RepeatDamaged() && StandIn()) return true;
-          StopWithWarning("frame size changes from " + std::to_string(width) + "x" +
-                          std::to_string(height) + " to " + std::to_string(frame->width) + "x" +
-                          std::to_string(frame->height));
+          StopWithWarning(resized
+                              ? "frame size changes from " + std::to_string(width) + "x" +
+                                    std::to_string(height) + " to " + std::to_string(frame->width) +
+                                    "x" + std::to_string(frame->height)
+                              : std::string("damaged frame (decode errors)"));
           return false;
         }
         GoodFrame();
