@@ -21,12 +21,15 @@ namespace {
 struct Model {
   mechanics::MechanicalState state;
   mechanics::SpringEnergy springs;
-  std::vector<FeatureView> features;
-  RowMatX3d features_rest;
-  mechanics::EmbeddedPoints feature_embedding;
-  std::vector<SurfaceMesh> internal;
-  std::vector<RowMatX3d> internal_rest;
-  std::vector<mechanics::EmbeddedPoints> internal_embedding;
+  FeatureRows rows;
+  EmbeddedStructures structures;
+  // The members the tests read, by short names.
+  std::vector<FeatureView>& features = rows.views;
+  RowMatX3d& features_rest = rows.rest_mm;
+  mechanics::EmbeddedPoints& feature_embedding = rows.embedding;
+  std::vector<SurfaceMesh>& internal = structures.surfaces;
+  std::vector<RowMatX3d>& internal_rest = structures.rest_mm;
+  std::vector<mechanics::EmbeddedPoints>& internal_embedding = structures.embedding;
 
   // top_mm: z of the model's top face (features 0.5 mm below it, the sheet 10 mm below).
   explicit Model(const TetMesh& mesh, double top_mm = 20.0) : state(mesh, mechanics::Material()) {
@@ -49,11 +52,11 @@ struct Model {
     SurfaceMesh sheet;
     sheet.vertices.resize(0, 3);
     const int n = 9;
-    sheet.vertices.resize(n * n, 3);
+    sheet.vertices.resize(static_cast<Eigen::Index>(n) * n, 3);
     for (int i = 0; i < n; ++i)
       for (int j = 0; j < n; ++j)
         sheet.vertices.row(i * n + j) << 4 + 4 * i, 4 + 4 * j, std::max(top_mm - 9.9, 0.5 * top_mm);
-    sheet.faces.resize(2 * (n - 1) * (n - 1), 3);
+    sheet.faces.resize(static_cast<Eigen::Index>(2) * (n - 1) * (n - 1), 3);
     int f = 0;
     for (int i = 0; i + 1 < n; ++i)
       for (int j = 0; j + 1 < n; ++j) {
@@ -67,10 +70,7 @@ struct Model {
         sheet.vertices, state.rest_positions(), state.tetrahedra()));
   }
 
-  CutTargets Targets() {
-    return {&state,    &springs,       &features,          &features_rest, &feature_embedding,
-            &internal, &internal_rest, &internal_embedding};
-  }
+  CutTargets Targets() { return {&state, &springs, &rows, &structures}; }
 
   // The targets with the internal structures replaced by `*original` (at rest as loaded), which
   // the events split along the crack.
@@ -83,9 +83,8 @@ struct Model {
       internal_embedding.push_back(mechanics::EmbeddedPoints::Embed(
           structure.vertices, state.rest_positions(), state.tetrahedra()));
     }
-    CutTargets targets = Targets();
-    targets.internal_original = original;
-    return targets;
+    structures.original = original;
+    return Targets();
   }
 };
 

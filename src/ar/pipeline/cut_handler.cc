@@ -1,18 +1,15 @@
 #include "ar/pipeline/cut_handler.h"
 
-#include <cstdio>
 #include <limits>
 #include <string>
 
 #include "ar/lift/lifting.h"
 #include "core/error.h"
 #include "core/log.h"
-#include "core/mesh_io.h"
 #include "core/mesh_ops.h"
 #include "cutting/cut_extrusion.h"
 #include "cutting/cut_surface.h"
 #include "cutting/mechanics_update.h"
-#include "cutting/structure_split.h"
 
 namespace arreg::pipeline {
 
@@ -66,21 +63,9 @@ SurfaceMesh CutHandler::NewPart(const std::vector<Eigen::Vector3d>& polyline_mm,
 
 namespace {
 
-// Vertices of internal structures on the crack are embedded this far off it (x the mean rest
-// edge length): far beyond the embedding's inside tolerance, far below any element's size.
-constexpr double kCrackOffsetFraction = 1e-4;
-
 // Depths of S behind the polyline tried by CuttingStageOptions::keep_connected, as fractions
 // of the extent that covers the model.
 constexpr double kDepthFractions[] = {1.0, 0.75, 0.5, 0.25};
-
-// A piece of the model holding less than this fraction of its rest volume is a sliver.
-constexpr double kSliverFraction = 0.05;
-// A piece below this fraction of the rest volume is debris: a few elements' fragments that two
-// nearly coincident cracks cut off (an event's crack turns away from the previous event's
-// look-ahead by a few degrees, and the elements between are cut twice). Debris is welded to
-// the nearest piece (CutHandler::FollowWelds) rather than simulated or refused.
-constexpr double kDebrisFraction = 0.005;
 
 // An end of the crack this close to the model's outline, in mean rest edge lengths, is
 // carried across it: the elements between could not hold a ligament that thin, and a crack
@@ -123,49 +108,18 @@ std::vector<Eigen::Vector3d> CarryEndsAcrossTheOutline(std::vector<Eigen::Vector
 
 }  // namespace
 
-struct CutHandler::Pieces {
-  Eigen::VectorXi piece;       // per element, its piece (elements connected through vertices)
-  std::vector<double> volume;  // per piece, its rest volume
-  double total = 0.0;
-  bool debris(int p) const { return volume[p] < kDebrisFraction * total; }
-  // Pieces that are not debris.
-  int Count() const {
-    int n = 0;
-    for (int p = 0; p < static_cast<int>(volume.size()); ++p) n += !debris(p);
-    return n;
-  }
-  // Pieces from the debris bound to kSliverFraction of the volume.
-  int Slivers() const {
-    int n = 0;
-    for (int p = 0; p < static_cast<int>(volume.size()); ++p)
-      n += !debris(p) && volume[p] < kSliverFraction * total;
-    return n;
-  }
-};
-
 // One event's cut as PlanCut finds it; mesh_ holds it when cut.status is kCut.
 struct CutHandler::Plan {
   SurfaceMesh s;  // the S cut (or the last one tried)
   cutting::CutChange change;
   cutting::CutSummary cut;
-  Pieces pieces_after;  // of the cut that applies
-  double depth = 0.0;   // of S, as a fraction of the depth that covers the model
+  ModelPieces pieces_after;  // of the cut that applies
+  double depth = 0.0;        // of S, as a fraction of the depth that covers the model
   bool in_rest = false;
   bool splits = false;  // the last S tried was refused by keep_connected
   // The polyline S was extruded from, in the rest configuration (CutEvent::polyline_rest_mm).
   std::vector<Eigen::Vector3d> polyline_rest_mm;
 };
-
-CutHandler::Pieces CutHandler::FindPieces(const TetMesh& rest) {
-  Pieces pieces;
-  int count = 0;
-  pieces.piece = ConnectedComponents(rest, Adjacency::kVertex, &count);
-  const Eigen::VectorXd volumes = TetVolumes(rest);
-  pieces.volume.assign(count, 0.0);
-  for (int t = 0; t < rest.num_tetrahedra(); ++t) pieces.volume[pieces.piece(t)] += volumes(t);
-  pieces.total = volumes.sum();
-  return pieces;
-}
 
 cutting::CutSummary CutHandler::CutWithRetry(const SurfaceMesh& s, cutting::CutChange* change) {
   const cutting::CutSurface cs{s.vertices, s.faces};
@@ -196,7 +150,7 @@ CutHandler::Plan CutHandler::PlanCut(const std::vector<Eigen::Vector3d>& polylin
                                      const std::vector<Eigen::Vector3d>& rest_polyline_mm,
                                      const Eigen::Vector3d& eye_mm,
                                      const mechanics::MechanicalState& state,
-                                     const Pieces& pieces_before) {
+                                     const ModelPieces& pieces_before) {
   // In the rest configuration (the frame-0 polyline along the frame-0 rays) S of the applied
   // segments is the same surface as before and lies on the crack, so the whole polyline is
   // cut and the new part continues the crack where the last event left it. In the current
@@ -337,13 +291,9 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
                            const std::vector<Eigen::Vector3d>& rest_polyline_mm,
                            const Eigen::Vector3d& eye_mm, const CutTargets& t,
                            SurfaceMesh* cut_surface) {
-  ARREG_CHECK_INPUT(t.state && t.springs && t.features && t.features_rest_mm &&
-                        t.feature_embedding && t.internal && t.internal_rest_mm &&
-                        t.internal_embedding,
-                    "", "CutHandler::Apply", "every target must be set");
+  ARREG_CHECK_INPUT(t.state && t.springs && t.features && t.internal, "", "CutHandler::Apply",
+                    "every target must be set");
   mechanics::MechanicalState& state = *t.state;
-  std::vector<FeatureView>& features = *t.features;
-  const int nf = static_cast<int>(features.size());
   CutEvent ev;
   ev.frame = frame;
   ev.polyline_points = static_cast<int>(polyline_mm.size());
@@ -370,7 +320,6 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
     const cutting::CutSummary& cut = plan.cut;
     const double depth = plan.depth;
     const bool in_rest = plan.in_rest;
-    const cutting::CutSurface cs{s.vertices, s.faces};
     ev.message = cut.message;
     if (cut.status == cutting::CutStatus::kCut) {
       ev.status = CutEventStatus::kCut;
@@ -387,41 +336,12 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
         *mesh_ = before;
         throw;
       }
-      cutting::ReembedAfterCut(plan.change, new_elements, state, *t.features_rest_mm,
-                               t.feature_embedding);
-      for (int r = 0; r < nf; ++r)
-        if (features[r].spring >= 0)
-          t.springs->SetAnchor(features[r].spring, (*t.feature_embedding)[r]);
-      std::vector<SurfaceMesh>& internal = *t.internal;
-      // Internal triangles and springs are tested against S in the configuration it was cut
-      // in: in the rest one the lips have not moved apart, and a spring's side is its rest one.
-      const RowMatX3d& after = in_rest ? state.rest_positions() : state.positions();
-      const TetMesh rest = state.RestMesh();  // after the cut: for the structures and the welds
-      const bool split = options_.internal_caps && t.internal_original && !internal.empty();
-      const SurfaceMesh crack = split ? cutting::CrackSurface(rest) : SurfaceMesh();
-      for (size_t k = 0; k < internal.size(); ++k) {
-        if (split && SplitInternal((*t.internal_original)[k], crack, rest, state, k, t, &ev))
-          continue;
-        cutting::ReembedAfterCut(plan.change, new_elements, state, (*t.internal_rest_mm)[k],
-                                 &(*t.internal_embedding)[k]);
-        const RowMatX3d points = (*t.internal_embedding)[k].Positions(after, state.tetrahedra());
-        const RowMatX3i kept = cutting::RemoveTrianglesCrossing(points, internal[k].faces, cs);
-        ev.internal_triangles_removed += static_cast<int>(internal[k].faces.rows() - kept.rows());
-        internal[k].faces = kept;
-      }
-      RowMatX3d anchors;
-      t.feature_embedding->Positions(after, state.tetrahedra(), &anchors);
-      for (int idx : cutting::PointsWithinMargin(s, anchors, options_.spring_margin_mm)) {
-        FeatureView& v = features[idx];
-        // Features on thin structures (no SpringEnergy spring) are re-anchored by their cut.
-        if (!v.spring_active || v.spring < 0) continue;
-        t.springs->Remove(v.spring);
-        v.spring_active = false;
-        ++ev.springs_removed;
-      }
+      const TetMesh rest = state.RestMesh();  // after the cut
+      FollowCut(plan.change, new_elements, rest, s, in_rest, mesh_->mean_rest_edge_length(),
+                options_, t, &ev);
       applied_points_.insert(applied_points_.end(), polyline_mm.begin(), polyline_mm.end());
       // The state is numbered like mesh_, so the pieces found there are the state's.
-      ev.welded_vertices = WeldDebris(plan.pieces_after, rest, &state);
+      ev.welded_vertices = welds_.Weld(plan.pieces_after, rest, &state);
       ev.new_vertices = state.num_vertices() - v_before;
       ev.new_tetrahedra = state.num_tetrahedra() - t_before;
     } else {
@@ -441,112 +361,6 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
     ARREG_LOG_WARNING("run: frame ", frame, ": cut not applied: ", e.what());
   }
   return ev;
-}
-
-bool CutHandler::SplitInternal(const SurfaceMesh& original, const SurfaceMesh& crack,
-                               const TetMesh& rest, const mechanics::MechanicalState& state,
-                               size_t k, const CutTargets& t, CutEvent* ev) const {
-  try {
-    // The crack is rebuilt from the whole cut mesh, so the structure as loaded is split at
-    // every event; a vertex on the crack is placed a hair off it, towards its side.
-    const cutting::SplitStructure split = cutting::SplitAlongCrack(
-        original, crack, kCrackOffsetFraction * mesh_->mean_rest_edge_length());
-    // Vertices off the crack keep their embedding where their element is unchanged.
-    (*t.internal_embedding)[k] = cutting::EmbedSplitStructure(
-        split, rest, {&(*t.internal_embedding)[k], &(*t.internal_rest_mm)[k]});
-    (*t.internal_rest_mm)[k] = split.surface.vertices;
-    (*t.internal)[k].faces = split.surface.faces;
-    (*t.internal_embedding)[k].Positions(state.positions(), state.tetrahedra(),
-                                         &(*t.internal)[k].vertices);
-    ev->internal_cap_faces += split.cap_faces;
-    return true;
-  } catch (const Error& e) {
-    std::string inputs;
-    if (!options_.refused_split_dir.empty()) {
-      char prefix[32];
-      std::snprintf(prefix, sizeof(prefix), "/%06d_split_%zu_", ev->frame, k);
-      const std::string path = options_.refused_split_dir + prefix;
-      try {
-        WriteSurfaceMesh(path + "structure.obj", original);
-        WriteSurfaceMesh(path + "crack.obj", crack);
-        inputs = "; its inputs: " + path + "structure.obj, " + path + "crack.obj";
-      } catch (const Error& w) {
-        inputs = std::string("; its inputs were not written: ") + w.what();
-      }
-    }
-    ARREG_LOG_WARNING(
-        "run: frame ", ev->frame, ": internal structure ", k,
-        " not split along the crack (its triangles crossing S are deleted): ", e.what(), inputs);
-    return false;
-  }
-}
-
-int CutHandler::WeldDebris(const Pieces& pieces, const TetMesh& rest,
-                           mechanics::MechanicalState* state) {
-  // The elements before this event may have been replaced: every weld is made again.
-  const size_t welded_before = welds_.size();
-  welds_.clear();
-  const int num_pieces = static_cast<int>(pieces.volume.size());
-  std::vector<std::vector<int>> elements(num_pieces);
-  for (int t = 0; t < rest.num_tetrahedra(); ++t) elements[pieces.piece(t)].push_back(t);
-  const auto centroid = [&](int t) {
-    Eigen::Vector3d c = Eigen::Vector3d::Zero();
-    for (int a = 0; a < 4; ++a) c += rest.vertices.row(rest.tetrahedra(t, a)).transpose();
-    return Eigen::Vector3d(c / 4.0);
-  };
-  std::vector<char> is_welded(state->num_vertices(), 0);
-  for (int p = 0; p < num_pieces; ++p) {
-    if (!pieces.debris(p)) continue;
-    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-    for (int t : elements[p]) centre += centroid(t);
-    centre /= static_cast<double>(elements[p].size());
-    // The fragment follows one element (so it moves affinely and cannot invert): the element of
-    // another piece, not debris, whose rest centroid is nearest to the fragment's.
-    int parent = -1;
-    double best = std::numeric_limits<double>::infinity();
-    for (int t = 0; t < rest.num_tetrahedra(); ++t) {
-      if (pieces.debris(pieces.piece(t))) continue;
-      const double d2 = (centroid(t) - centre).squaredNorm();
-      if (d2 < best) {
-        best = d2;
-        parent = t;
-      }
-    }
-    if (parent < 0) continue;  // the whole model is debris: leave it to the solver
-    const auto corner = [&](int a) -> Eigen::Vector3d {
-      return rest.vertices.row(rest.tetrahedra(parent, a)).transpose();
-    };
-    for (int t : elements[p])
-      for (int a = 0; a < 4; ++a) {
-        const int v = rest.tetrahedra(t, a);
-        if (is_welded[v]) continue;
-        is_welded[v] = 1;
-        welds_.push_back(
-            {v,
-             {parent, mechanics::BarycentricCoordinates(rest.vertices.row(v).transpose(), corner(0),
-                                                        corner(1), corner(2), corner(3))}});
-      }
-  }
-  std::vector<int> vertices;
-  for (const Weld& w : welds_) vertices.push_back(w.vertex);
-  state->SetFixed(vertices);
-  FollowWelds(state);
-  return static_cast<int>(welds_.size()) - static_cast<int>(welded_before);
-}
-
-void CutHandler::FollowWelds(mechanics::MechanicalState* state) const {
-  RowMatX3d& x = state->mutable_positions();
-  RowMatX3d& v = state->mutable_velocities();
-  for (const Weld& w : welds_) {
-    Eigen::RowVector3d position = Eigen::RowVector3d::Zero(), velocity = position;
-    for (int a = 0; a < 4; ++a) {
-      const int corner = state->tetrahedra()(w.at.tet, a);
-      position += w.at.barycentric(a) * x.row(corner);
-      velocity += w.at.barycentric(a) * v.row(corner);
-    }
-    x.row(w.vertex) = position;
-    v.row(w.vertex) = velocity;
-  }
 }
 
 }  // namespace arreg::pipeline

@@ -6,34 +6,17 @@
 #include <memory>
 #include <vector>
 
+#include "ar/pipeline/cut_targets.h"
+#include "ar/pipeline/debris_welds.h"
 #include "ar/pipeline/frame_observer.h"
 #include "ar/pipeline/pipeline_options.h"
 #include "core/mesh.h"
 #include "cutting/cut_extrusion.h"
 #include "cutting/tet_cutter.h"
-#include "mechanics/embedding.h"
 #include "mechanics/mechanical_state.h"
 #include "mechanics/spring_energy.h"
 
 namespace arreg::pipeline {
-
-// What a cut updates; owned by the pipeline, valid during CutHandler::Apply.
-struct CutTargets {
-  mechanics::MechanicalState* state = nullptr;
-  mechanics::SpringEnergy* springs = nullptr;
-  std::vector<FeatureView>* features = nullptr;  // one per feature row
-  // (#features x 3) frame-0 attachment points [mm], in the rest frame of `state`.
-  const RowMatX3d* features_rest_mm = nullptr;
-  mechanics::EmbeddedPoints* feature_embedding = nullptr;  // one point per feature row
-  // Internal structures: split along the crack or their triangles crossing S deleted
-  // (CuttingStageOptions::internal_caps), with their rest vertices and embedding.
-  std::vector<SurfaceMesh>* internal = nullptr;
-  std::vector<RowMatX3d>* internal_rest_mm = nullptr;  // rest vertices per structure
-  std::vector<mechanics::EmbeddedPoints>* internal_embedding = nullptr;
-  // The structures as loaded, in the rest frame: each event splits them anew along the whole
-  // crack. Without them (nullptr) triangles crossing S are deleted.
-  const std::vector<SurfaceMesh>* internal_original = nullptr;
-};
 
 // Keeps one cuttable topology (cutting::CuttableMesh, numbered like the mechanical state)
 // across the events of a run, so a partial cut's open front is continued by the next event
@@ -77,8 +60,8 @@ class CutHandler {
   // cracks) is welded: its vertices are fixed in the state and follow one element of the
   // nearest piece affinely (rest barycentric coordinates). Call after every mechanics step;
   // Apply calls it after an event.
-  void FollowWelds(mechanics::MechanicalState* state) const;
-  int num_welded_vertices() const { return static_cast<int>(welds_.size()); }
+  void FollowWelds(mechanics::MechanicalState* state) const { welds_.Follow(state); }
+  int num_welded_vertices() const { return welds_.num_vertices(); }
 
  private:
   bool Applied(const Eigen::Vector3d& p) const;
@@ -89,34 +72,16 @@ class CutHandler {
   SurfaceMesh NewPart(const std::vector<Eigen::Vector3d>& polyline_mm,
                       const Eigen::Vector3d& eye_mm, const cutting::CutExtrusionOptions& ext) const;
 
-  // Splits internal structure k (`original`, as loaded) along `crack` (of `rest`, the state's
-  // rest mesh) and replaces its faces, rest vertices, embedding and positions in `t`; false
-  // (with a warning, nothing changed) when the split fails.
-  bool SplitInternal(const SurfaceMesh& original, const SurfaceMesh& crack, const TetMesh& rest,
-                     const mechanics::MechanicalState& state, size_t k, const CutTargets& t,
-                     CutEvent* ev) const;
-
-  // The model's pieces (elements connected through vertices) and their rest volumes; defined
-  // in the .cc.
-  struct Pieces;
-  static Pieces FindPieces(const TetMesh& rest);
   // Finds the event's cut: the configurations and depths tried, as documented in Apply. On
   // return mesh_ holds the cut when the plan's status is kCut, else it is as before.
   struct Plan;
   Plan PlanCut(const std::vector<Eigen::Vector3d>& polyline_mm,
                const std::vector<Eigen::Vector3d>& rest_polyline_mm, const Eigen::Vector3d& eye_mm,
-               const mechanics::MechanicalState& state, const Pieces& pieces_before);
+               const mechanics::MechanicalState& state, const ModelPieces& pieces_before);
   // A plan SplitsTheModel found that cuts, with what it was planned from; reset by every Apply.
   struct Planned;
   std::unique_ptr<Planned> planned_;
-  // Welds every debris piece of the state, given its pieces and rest mesh (see FollowWelds);
-  // returns how many vertices were welded by this call beyond those welded before.
-  int WeldDebris(const Pieces& pieces, const TetMesh& rest, mechanics::MechanicalState* state);
-  struct Weld {
-    int vertex = -1;
-    mechanics::EmbeddedPoint at;  // the element it follows, rest barycentric coordinates
-  };
-  std::vector<Weld> welds_;
+  DebrisWelds welds_;
 
   CuttingStageOptions options_;
   std::unique_ptr<cutting::CuttableMesh> mesh_;
