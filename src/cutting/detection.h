@@ -76,8 +76,8 @@ struct CutDetectorOptions {
   // mistracked feature's pairs are what the threshold is to find, and with the plain mean they
   // raise it (the longer a precut, the more pairs cross it, the higher the bar). Where no pair
   // exceeds tau times the plain mean both are the same. false: the thesis's plain mean. It
-  // helps the synthetic dev scenes, not the phantom ones (docs/detection.md, "The inliers'
-  // mean"). Default false.
+  // helps the synthetic dev scenes, not the phantom ones (docs/detection-measured.md, "The
+  // inliers' mean"). Default false.
   bool mean_of_inliers = false;
   // n [-]: outlier count (weighted, see outlier_weight_cap) at which a cut point is inserted.
   // The thesis uses 8 (kidney 1) and 3 (kidney 2, whose cuts are crossed by few tracked pairs).
@@ -305,7 +305,7 @@ struct CutDetectorOptions {
   // The decision (see CutDecision). Default kRules: on the synthetic development scenes the
   // separation test matches the rules on the side precut, the S-cut and the kidney and makes no
   // cut on stretched bands, but follows a V-tear whose lips the tracker loses less far and
-  // misses a middle precut (docs/detection.md, "Measured").
+  // misses a middle precut (docs/detection-measured.md, "The two decisions").
   CutDecision decision = CutDecision::kRules;
   // The separation test's options (kSeparationTest).
   SeparationTestOptions separation;

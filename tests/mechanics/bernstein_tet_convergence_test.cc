@@ -1,6 +1,6 @@
 // Convergence of Bernstein-Bezier tetrahedra (P1, P2, P3) on two bending problems:
 // a clamped cantilever under a tip shear load and Cook's membrane. Prints the
-// tables of docs/higher-order.md. Slow (a few fine meshes).
+// tables of docs/higher-order-verification.md. Slow (a few fine meshes).
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -166,7 +166,8 @@ TEST(BernsteinConvergence, CantileverInBending) {
 // (48, 60); the load is scaled down by 1e4 (small displacement) and the result back up.
 // The 2D plane-stress literature value is 23.96; this 3D slab passes it (conforming
 // displacement elements approach the exact compliance from below, and P1 at n = 64 is
-// above it too), so the reference here is the finest P3 solution; see docs/higher-order.md.
+// above it too), so the reference here is the finest P3 solution; see
+// docs/higher-order-verification.md.
 TEST(BernsteinConvergence, CooksMembrane) {
   const double thickness = 1, scale = 1e4;
   Material material;

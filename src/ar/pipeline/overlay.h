@@ -17,7 +17,7 @@
 namespace arreg::pipeline {
 
 // The overlay of a camera with lens distortion is drawn with its pinhole part
-// (render::ToRasterCamera; see docs/pipeline.md).
+// (render::ToRasterCamera; see docs/overlay.md).
 using render::ToRasterCamera;
 
 struct OverlayStructure {

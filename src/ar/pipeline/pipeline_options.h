@@ -225,7 +225,7 @@ struct OutputStageOptions {
   bool video = true;  // overlay.mp4; default true
   int crf = 23;       // x264 quality of overlay.mp4 (0..51); x264's own default
   // x264 speed preset of overlay.mp4; default "ultrafast": at CRF 18 the overlay looks the
-  // same, the file is larger, and encoding costs a fraction of "veryfast" (docs/pipeline.md).
+  // same, the file is larger, and encoding costs a fraction of "veryfast" (docs/pipeline-speed.md).
   std::string preset = "ultrafast";
   // x264 encoder threads; 1 (default) keeps timings single-threaded, 0 lets FFmpeg choose.
   int encode_threads = 1;
