@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <mutex>
 #include <string>
 
 #include "core/error.h"
@@ -30,6 +31,16 @@ class SerialOpenMp {
  private:
   int levels_;
 };
+
+// Debian's serial OpenBLAS, the BLAS CHOLMOD's supernodal factorisation and solves run on
+// (docs/mechanics.md, "BLAS"), is built without OpenBLAS's USE_LOCKING (the library imports no
+// pthread function): two threads inside it at once share its buffer pool unguarded and can
+// get wrong factors. The numeric work of every solver in the process takes turns here; one
+// thread pays an uncontended lock per factorisation or solve.
+std::mutex& BlasTurn() {
+  static std::mutex turn;
+  return turn;
+}
 
 // Sparse Cholesky with CHOLMOD: the symbolic analysis (fill-reducing ordering,
 // supernodes) is kept until the pattern changes; a value change only redoes the
@@ -128,6 +139,7 @@ class CholmodSolver : public LinearSolver {
     if (!factor_valid_) {
       has_numeric_ = false;
       {
+        const std::lock_guard<std::mutex> turn(BlasTurn());
         const SerialOpenMp serial;
         cholmod_factorize(&view, factor_, &common_);
       }
@@ -171,8 +183,11 @@ class CholmodSolver : public LinearSolver {
     rhs.z = nullptr;
     rhs.xtype = CHOLMOD_REAL;
     rhs.dtype = CHOLMOD_DOUBLE;
-    if (!cholmod_solve2(CHOLMOD_A, factor_, &rhs, nullptr, &x_, nullptr, &y_, &e_, &common_))
-      return false;
+    {
+      const std::lock_guard<std::mutex> turn(BlasTurn());
+      if (!cholmod_solve2(CHOLMOD_A, factor_, &rhs, nullptr, &x_, nullptr, &y_, &e_, &common_))
+        return false;
+    }
     x->resize(n);
     std::copy(static_cast<const double*>(x_->x), static_cast<const double*>(x_->x) + n, x->data());
     return true;
