@@ -386,7 +386,12 @@ class SequenceRunner {
         (state_.rest_positions() - rest.vertices).cwiseAbs().maxCoeff() > 1e-9 * volume_scale())
       return std::make_pair(std::string("mechanics-state"),
                             std::string("the state after ApplyCutChange is not the cut mesh"));
-    if (auto failed = StepMechanics()) return failed;
+    if (auto failed = StepMechanics()) {
+      std::ostringstream s;
+      s << "; smallest normalised volume " << inv.min_quality;
+      failed->second += s.str();
+      return failed;
+    }
     if (source_.structure.num_faces() > 0)
       if (auto failed = SplitStructure(rest)) return failed;
     return std::nullopt;
@@ -466,6 +471,7 @@ nlohmann::json OptionsJson(const CutOptions& o) {
           {"on_surface_tolerance", o.on_surface_tolerance},
           {"min_barycentric", o.min_barycentric},
           {"min_flip_quality", o.min_flip_quality},
+          {"min_element_quality", o.min_element_quality},
           {"feature_angle_deg", o.feature_angle_deg},
           {"separate", o.separate},
           {"move_front_vertices", o.move_front_vertices}};
@@ -609,7 +615,7 @@ void SaveCase(const std::string& dir, const SweepMesh& mesh, const std::vector<R
     SurfaceMesh s;
     s.vertices = cuts[k].surface.vertices;
     s.faces = cuts[k].surface.triangles;
-    WriteSurfaceMesh(dir + "/" + file, s);
+    WriteSurfaceMesh(std::string(dir).append("/").append(file), s);
     j["cuts"].push_back({{"kind", RandomCutKindName(cuts[k].kind)},
                          {"surface", file},
                          {"options", OptionsJson(cuts[k].options)}});
@@ -642,6 +648,9 @@ std::vector<Violation> ReplayCase(const std::string& dir) {
       cut.options.on_surface_tolerance = o.at("on_surface_tolerance").get<double>();
       cut.options.min_barycentric = o.at("min_barycentric").get<double>();
       cut.options.min_flip_quality = o.at("min_flip_quality").get<double>();
+      // Cases saved before the option existed replay with its default.
+      if (o.contains("min_element_quality"))
+        cut.options.min_element_quality = o.at("min_element_quality").get<double>();
       cut.options.feature_angle_deg = o.at("feature_angle_deg").get<double>();
       cut.options.separate = o.at("separate").get<bool>();
       cut.options.move_front_vertices = o.at("move_front_vertices").get<bool>();

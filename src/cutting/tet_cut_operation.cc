@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <unordered_map>
@@ -248,7 +249,8 @@ void CutOperation::Snap() {
   summary_.num_snapped_vertices = static_cast<int>(snapped_.size());
 }
 
-bool CutOperation::Verify(std::string* why) const {
+bool CutOperation::Verify(std::string* why, bool* sliver) const {
+  *sliver = false;
   double removed_volume = 0, added_volume = 0, scale = 0;
   for (int t : crossed_tets_) {
     const Tet& q = m_.tets_[t];
@@ -270,6 +272,18 @@ bool CutOperation::Verify(std::string* why) const {
     // not: such an element is flat for the simulation, which refuses it.
     if (!(RestDeterminant(q) > 0)) {
       *why = "an inserted element would have a non-positive rest volume in floating point";
+      return false;
+    }
+    const double quality =
+        TetQuality(m_.rest_[q[0]], m_.rest_[q[1]], m_.rest_[q[2]], m_.rest_[q[3]]);
+    if (quality < opt_.min_element_quality) {
+      char text[128];
+      std::snprintf(text, sizeof(text),
+                    "an inserted element would be a sliver (normalised volume %.3g < %.3g, "
+                    "min_element_quality)",
+                    quality, opt_.min_element_quality);
+      *why = text;
+      *sliver = true;
       return false;
     }
     added_volume += TetVolume(m_.rest_[q[0]], m_.rest_[q[1]], m_.rest_[q[2]], m_.rest_[q[3]]);
@@ -408,11 +422,13 @@ CutSummary CutOperation::Run(CutChange* change) {
   if (!crossed_tets_.empty()) {
     Remesh();
     std::string why;
-    if (!Verify(&why)) {
+    bool sliver = false;
+    if (!Verify(&why, &sliver)) {
       Rollback();
       summary_ = CutSummary();
       summary_.status = CutStatus::kRejected;
       summary_.message = why;
+      summary_.sliver = sliver;
       return summary_;
     }
   }

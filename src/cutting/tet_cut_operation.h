@@ -197,7 +197,8 @@ class CutOperation {
   bool RemoveEdge(const EdgeLink& link);
   void BisectEdge(const EdgeLink& link);
   void ExtendUnsewnSplits();
-  bool Verify(std::string* why) const;
+  // False (with the reason, and whether it is a sliver) when the event must be rejected.
+  bool Verify(std::string* why, bool* sliver) const;
   void Commit(CutChange* change);
   void Separate();
 

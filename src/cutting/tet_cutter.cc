@@ -36,6 +36,9 @@ void CutOptions::Check() const {
   ARREG_CHECK_INPUT(std::isfinite(min_flip_quality) && min_flip_quality >= 0, "",
                     "CutOptions.min_flip_quality", "must be finite and >= 0, got ",
                     min_flip_quality);
+  ARREG_CHECK_INPUT(std::isfinite(min_element_quality) && min_element_quality >= 0, "",
+                    "CutOptions.min_element_quality", "must be finite and >= 0, got ",
+                    min_element_quality);
   ARREG_CHECK_INPUT(feature_angle_deg >= 0 && feature_angle_deg <= 180, "",
                     "CutOptions.feature_angle_deg", "must be in [0, 180], got ", feature_angle_deg);
 }
@@ -152,6 +155,19 @@ CutSummary CuttableMesh::Cut(const CutSurface& surface, const CutOptions& option
                              CutChange* change) {
   options.Check();
   surface.Check();
+  CutSummary summary = CutKeepingManifold(surface, options, change);
+  CutOptions retry = options;
+  for (double tolerance : kSliverRetryTolerances) {
+    if (!summary.sliver) break;
+    if (tolerance <= retry.on_surface_tolerance) continue;
+    retry.on_surface_tolerance = tolerance;
+    summary = CutKeepingManifold(surface, retry, change);
+  }
+  return summary;
+}
+
+CutSummary CuttableMesh::CutKeepingManifold(const CutSurface& surface, const CutOptions& options,
+                                            CutChange* change) {
   // A snapshot lets an event that would leave a pinched (non-manifold) boundary be
   // undone: it is retried without snapping (the usual cause), then rejected.
   const CuttableMesh before = *this;
@@ -160,6 +176,7 @@ CutSummary CuttableMesh::Cut(const CutSurface& surface, const CutOptions& option
     CutChange local;
     CutOperation event(this, surface, opt);
     CutSummary summary = event.Run(&local);
+    summary.on_surface_tolerance = opt.on_surface_tolerance;
     if (summary.status != CutStatus::kCut) return summary;
     std::vector<int> touched;
     for (int t : local.removed_tetrahedra)
@@ -179,6 +196,7 @@ CutSummary CuttableMesh::Cut(const CutSurface& surface, const CutOptions& option
   }
   CutSummary rejected;
   rejected.status = CutStatus::kRejected;
+  rejected.on_surface_tolerance = opt.on_surface_tolerance;
   rejected.message =
       "the separation would leave a non-manifold boundary (S is not resolved by "
       "the mesh there)";

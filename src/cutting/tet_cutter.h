@@ -54,6 +54,13 @@ struct CutOptions {
   // normalised volume 6 sqrt(2) V / l_rms^3 of at least this (unitless, >= 0;
   // default 1e-4); otherwise the face gets a vertex / the edge is bisected.
   double min_flip_quality = 1e-4;
+  // Smallest normalised volume (rest configuration) of an element the event inserts (unitless,
+  // >= 0; default 1e-10); below it the event is rejected. A sliver of normalised volume q is
+  // about 1/q times stiffer across its thin direction than along it, and near q ~ 1e-12 the
+  // implicit step's Cholesky factorisation loses definiteness in double precision: the default
+  // keeps two orders of magnitude from there. Such elements come from S grazing a vertex, edge
+  // or face closer than min_barycentric allows for; see Cut for the retry.
+  double min_element_quality = 1e-10;
   // Boundary edges whose incident boundary faces deviate from flat by more than this
   // (degrees, >= 0; default 0 = only exactly coplanar faces) are features and are
   // bisected; others are removed by a general flip, which changes the enclosed
@@ -118,9 +125,19 @@ struct CutChange {
   std::vector<std::array<int, 3>> separated_faces;  // faces unsewn by this event
 };
 
+// The on-surface tolerances (x mean rest edge length) an event that would insert a sliver is
+// retried with, in turn: S moved by at most 0.1 %, then 1 % of an edge length onto the vertices
+// it grazes, far below the accuracy of a cut surface from video (~ 0.5 mm).
+inline constexpr double kSliverRetryTolerances[] = {1e-3, 1e-2};
+
 struct CutSummary {
   CutStatus status = CutStatus::kNoCrossing;
   std::string message;
+  // kRejected because an inserted element would have been below min_element_quality.
+  bool sliver = false;
+  // The on-surface tolerance the event was made with: options.on_surface_tolerance, or the
+  // larger one a sliver made Cut retry with.
+  double on_surface_tolerance = 0.0;
   int num_crossed_edges = 0;
   int num_crossed_tetrahedra = 0;  // n(v)
   int num_snapped_vertices = 0;    // snapped vertices and moved front vertices
@@ -154,7 +171,9 @@ class CuttableMesh {
   // vertices are kept. Throws arreg::Error on a row count mismatch or non-finite values.
   void SetDeformation(const RowMatX3d& current_positions, const RowMatX3d& velocities);
 
-  // One cutting event along S (in the frame of the current positions).
+  // One cutting event along S (in the frame of the current positions). An event that would
+  // insert a sliver (CutOptions::min_element_quality) is retried with vertices within
+  // kSliverRetryTolerances x (mean rest edge length) of S counted as on it, then rejected.
   CutSummary Cut(const CutSurface& surface, const CutOptions& options, CutChange* change = nullptr);
 
   int num_vertices() const { return static_cast<int>(rest_.size()); }
@@ -173,6 +192,10 @@ class CuttableMesh {
   TetMesh CurrentMesh() const;
 
  private:
+  // One attempt with these options; an event that would leave a pinched (non-manifold)
+  // boundary is retried without snapping, then rejected.
+  CutSummary CutKeepingManifold(const CutSurface& surface, const CutOptions& options,
+                                CutChange* change);
   friend class cut_internal::CutOperation;
   void Init(const TetMesh& rest_mesh, const RowMatX3d& current, const RowMatX3d& velocities);
   bool BoundaryManifoldAround(const std::vector<int>& vertices) const;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <set>
 
 #include "core/error.h"
@@ -224,11 +225,34 @@ TEST(RandomCuts, SavedCaseReplays) {
 // normalised volume 9.5e-13 and the implicit step's matrix was not positive definite to CHOLMOD;
 // vertices nearer to S than min_barycentric of their shortest edge now count as on S.
 TEST(RandomCuts, SavedFailuresReplayWithoutViolation) {
-  for (const char* name : {"beam_partial_zero_volume", "beam_graze_face_indefinite"}) {
+  for (const char* name :
+       {"beam_partial_zero_volume", "beam_graze_face_indefinite", "beam_graze_face_sliver"}) {
     const std::vector<Violation> v =
         ReplayCase(std::string(ARREG_SOURCE_DIR) + "/tests/data/random_cuts/" + name);
     EXPECT_TRUE(v.empty()) << name << ": " << v[0].check << ": " << v[0].detail;
   }
+}
+
+// The floor on inserted elements' quality is what keeps this sequence solvable: without it
+// (min_element_quality 0) a grazing cut leaves a sliver on which the implicit step's Cholesky
+// factorisation fails; with the default the event is remade with a wider on-surface tolerance.
+TEST(RandomCuts, SliverFloorKeepsTheStepSolvable) {
+  const std::string saved = std::string(ARREG_SOURCE_DIR) +
+                            "/tests/data/random_cuts/"
+                            "beam_graze_face_sliver";
+  const std::string dir = testing::ScratchDir("sliver_floor_off");
+  for (const char* file : {"initial.vtk", "cut_000.obj", "cut_001.obj", "cut_002.obj",
+                           "cut_003.obj", "cut_004.obj", "cut_005.obj"})
+    std::filesystem::copy_file(saved + "/" + file, dir + "/" + file,
+                               std::filesystem::copy_options::overwrite_existing);
+  nlohmann::json c = nlohmann::json::parse(ReadFileToString(saved + "/case.json"));
+  for (auto& cut : c.at("cuts")) cut.at("options")["min_element_quality"] = 0.0;
+  WriteFileAtomic(dir + "/case.json", [&](std::ostream& out) { out << c.dump(1); });
+  const std::vector<Violation> without = ReplayCase(dir);
+  ASSERT_EQ(without.size(), 1u);
+  EXPECT_EQ(without[0].check, "mechanics");
+  EXPECT_NE(without[0].detail.find("smallest normalised volume"), std::string::npos);
+  EXPECT_TRUE(ReplayCase(saved).empty());
 }
 
 TEST(RandomCuts, OptionsCheckNamesTheField) {
