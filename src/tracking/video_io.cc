@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <mutex>
 #include <vector>
@@ -74,8 +76,24 @@ bool IsImageFile(const fs::path& p) {
          ext == ".tiff";
 }
 
-int SwsColorspace(AVColorSpace cs) {
-  switch (cs) {
+// The value of one of a frame's colour fields as stored. The decoder copies them from the
+// bitstream unchecked, so a damaged stream can leave a value outside the enumeration there, and
+// reading such a field as its enum type is undefined behaviour.
+template <class Enum>
+int StoredValue(const Enum& field) {
+  static_assert(sizeof(Enum) == sizeof(int), "FFmpeg's colour enums are int-sized");
+  int value = 0;
+  std::memcpy(&value, &field, sizeof(value));
+  return value;
+}
+
+// Frames above kMaxPixelsFactor times the pixels the stream declares (at least kMinMaxPixels)
+// are refused by the decoder (VideoReader::Impl::Open).
+constexpr int64_t kMaxPixelsFactor = 4;
+constexpr int64_t kMinMaxPixels = int64_t{64} * 64;
+
+int SwsColorspace(const AVFrame& f) {
+  switch (StoredValue(f.colorspace)) {
     case AVCOL_SPC_BT709:
       return SWS_CS_ITU709;
     case AVCOL_SPC_BT2020_NCL:
@@ -85,6 +103,8 @@ int SwsColorspace(AVColorSpace cs) {
       return SWS_CS_DEFAULT;
   }
 }
+
+bool FullRange(const AVFrame& f) { return StoredValue(f.color_range) == AVCOL_RANGE_JPEG; }
 
 }  // namespace
 
@@ -333,6 +353,13 @@ struct VideoReader::Impl {
     r = avcodec_parameters_to_context(decoder, stream->codecpar);
     ARREG_CHECK_INPUT(r >= 0, file, "", "bad codec parameters: ", AvErrorString(r));
     decoder->thread_count = options.decode_threads;
+    // A frame of another size than the first is damage (DecodeNext); one far larger than the
+    // stream declares is not even decoded: a corrupt header can announce a frame of tens of
+    // megapixels in a tiny stream, and decoding it costs a fraction of a second per frame. The
+    // decoder refuses frames above this count (a packet it cannot decode, handled like any
+    // other damage).
+    const int64_t declared = int64_t{stream->codecpar->width} * stream->codecpar->height;
+    if (declared > 0) decoder->max_pixels = std::max(kMaxPixelsFactor * declared, kMinMaxPixels);
     if (options.skip_loop_filter) decoder->skip_loop_filter = AVDISCARD_ALL;
     r = avcodec_open2(decoder, codec, nullptr);
     ARREG_CHECK_INPUT(r >= 0, file, "", "cannot open decoder '", codec->name,
@@ -464,8 +491,8 @@ bool VideoReader::Read(cv::Mat* bgr) {
   ARREG_CHECK_INPUT(d.sws != nullptr, d.path, FrameWhere(d.next_index),
                     "cannot convert pixel format '",
                     av_get_pix_fmt_name(static_cast<AVPixelFormat>(f->format)), "' to BGR");
-  const int src_range = f->color_range == AVCOL_RANGE_JPEG ? 1 : 0;
-  const int* coefficients = sws_getCoefficients(SwsColorspace(f->colorspace));
+  const int src_range = FullRange(*f) ? 1 : 0;
+  const int* coefficients = sws_getCoefficients(SwsColorspace(*f));
   sws_setColorspaceDetails(d.sws, coefficients, src_range, sws_getCoefficients(SWS_CS_DEFAULT), 1,
                            0, 1 << 16, 1 << 16);
   bgr->create(f->height, f->width, CV_8UC3);
@@ -498,7 +525,7 @@ bool VideoReader::ReadGray(cv::Mat* gray) {
       desc->comp[0].offset == 0;
   if (luma_plane) {
     const cv::Mat y(f->height, f->width, CV_8UC1, f->data[0], static_cast<size_t>(f->linesize[0]));
-    const bool full_range = f->color_range == AVCOL_RANGE_JPEG || pix_fmt == AV_PIX_FMT_GRAY8 ||
+    const bool full_range = FullRange(*f) || pix_fmt == AV_PIX_FMT_GRAY8 ||
                             pix_fmt == AV_PIX_FMT_YUVJ420P || pix_fmt == AV_PIX_FMT_YUVJ422P ||
                             pix_fmt == AV_PIX_FMT_YUVJ444P || pix_fmt == AV_PIX_FMT_YUVJ440P;
     if (full_range) {
