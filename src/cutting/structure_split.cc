@@ -16,6 +16,7 @@
 #include <cmath>
 #include <map>
 #include <numeric>
+#include <optional>
 #include <set>
 #include <string>
 #include <tuple>
@@ -524,6 +525,7 @@ SplitStructure SplitOnce(const SurfaceMesh& structure, const SurfaceMesh& crack,
   }
   embed_at = positions;
   std::vector<std::array<int, 3>> faces;
+  faces.reserve(other_faces.size() + a.number_of_faces());
   for (const int f : other_faces)
     faces.push_back({structure.faces(f, 0), structure.faces(f, 1), structure.faces(f, 2)});
   for (FaceIndex f : a.faces()) {
@@ -801,10 +803,20 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
                                double offset_mm) {
   ARREG_CHECK_INPUT(offset_mm > 0, "", "SplitAlongCrack", "offset_mm must be positive, got ",
                     offset_mm);
-  SplitStructure out = SplitOnce(structure, crack, offset_mm);
-  if (!out.capped) return out;
-  const SurfaceTopology result = AnalyzeSurface(out.surface);
-  if (result.closed_oriented_manifold()) return out;
+  SplitStructure out;
+  std::optional<Error> corefinement;
+  try {
+    out = SplitOnce(structure, crack, offset_mm);
+  } catch (const Error& e) {
+    // CGAL refuses intersection curves that cross each other off a vertex ("Unauthorized
+    // intersections of constraints"), which a crack grazing the structure's faces can make;
+    // the moved crack below meets the structure generically.
+    if (std::string(e.what()).find("corefinement failed") == std::string::npos) throw;
+    corefinement = e;
+  }
+  if (!corefinement && !out.capped) return out;
+  const SurfaceTopology result = corefinement ? SurfaceTopology() : AnalyzeSurface(out.surface);
+  if (!corefinement && result.closed_oriented_manifold()) return out;
   // The exact predicates see the crack's contacts with the structure's surface as they are: a
   // crack vertex on a structure face or edge, a crack face in a structure face's plane. The
   // mendings above repair the usual results of such contacts; where a contact still leaves the
@@ -820,10 +832,16 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
         Eigen::RowVector3d(-std::sqrt(3.0), 1, -std::sqrt(2.0)).normalized()}) {
     SurfaceMesh moved = crack;
     moved.vertices.rowwise() += step * direction;
-    SplitStructure retried = SplitOnce(structure, moved, offset_mm);
+    SplitStructure retried;
+    try {
+      retried = SplitOnce(structure, moved, offset_mm);
+    } catch (const Error&) {
+      continue;
+    }
     if (!retried.capped || AnalyzeSurface(retried.surface).closed_oriented_manifold())
       return retried;
   }
+  if (corefinement) throw *corefinement;
   // Two caps describe two sides; where cracks branch inside the structure (three sheets on one
   // edge) the sides are more than two, which this construction cannot represent.
   throw Error(

@@ -225,8 +225,8 @@ TEST(RandomCuts, SavedCaseReplays) {
 // normalised volume 9.5e-13 and the implicit step's matrix was not positive definite to CHOLMOD;
 // vertices nearer to S than min_barycentric of their shortest edge now count as on S.
 TEST(RandomCuts, SavedFailuresReplayWithoutViolation) {
-  for (const char* name :
-       {"beam_partial_zero_volume", "beam_graze_face_indefinite", "beam_graze_face_sliver"}) {
+  for (const char* name : {"beam_partial_zero_volume", "beam_graze_face_indefinite",
+                           "beam_graze_face_sliver", "kidney_graze_face_corefinement"}) {
     const std::vector<Violation> v =
         ReplayCase(std::string(ARREG_SOURCE_DIR) + "/tests/data/random_cuts/" + name);
     EXPECT_TRUE(v.empty()) << name << ": " << v[0].check << ": " << v[0].detail;
