@@ -803,20 +803,20 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
                                double offset_mm) {
   ARREG_CHECK_INPUT(offset_mm > 0, "", "SplitAlongCrack", "offset_mm must be positive, got ",
                     offset_mm);
-  SplitStructure out;
-  std::optional<Error> corefinement;
+  // A first attempt that fails, by corefinement error or non-manifold caps, is retried below.
+  // CGAL's corefinement refuses intersection curves that cross each other off a vertex
+  // ("Unauthorized intersections of constraints"), which a crack grazing the structure's faces
+  // can make; the moved crack meets the structure generically.
+  std::optional<Error> first_error;
+  SurfaceTopology result;
   try {
-    out = SplitOnce(structure, crack, offset_mm);
+    SplitStructure out = SplitOnce(structure, crack, offset_mm);
+    if (!out.capped) return out;
+    result = AnalyzeSurface(out.surface);
+    if (result.closed_oriented_manifold()) return out;
   } catch (const Error& e) {
-    // CGAL refuses intersection curves that cross each other off a vertex ("Unauthorized
-    // intersections of constraints"), which a crack grazing the structure's faces can make;
-    // the moved crack below meets the structure generically.
-    if (std::string(e.what()).find("corefinement failed") == std::string::npos) throw;
-    corefinement = e;
+    first_error = e;
   }
-  if (!corefinement && !out.capped) return out;
-  const SurfaceTopology result = corefinement ? SurfaceTopology() : AnalyzeSurface(out.surface);
-  if (!corefinement && result.closed_oriented_manifold()) return out;
   // The exact predicates see the crack's contacts with the structure's surface as they are: a
   // crack vertex on a structure face or edge, a crack face in a structure face's plane. The
   // mendings above repair the usual results of such contacts; where a contact still leaves the
@@ -841,7 +841,7 @@ SplitStructure SplitAlongCrack(const SurfaceMesh& structure, const SurfaceMesh& 
     if (!retried.capped || AnalyzeSurface(retried.surface).closed_oriented_manifold())
       return retried;
   }
-  if (corefinement) throw *corefinement;
+  if (first_error) throw *first_error;
   // Two caps describe two sides; where cracks branch inside the structure (three sheets on one
   // edge) the sides are more than two, which this construction cannot represent.
   throw Error(
