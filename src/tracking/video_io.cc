@@ -92,6 +92,12 @@ int StoredValue(const Enum& field) {
 constexpr int64_t kMaxPixelsFactor = 4;
 constexpr int64_t kMinMaxPixels = int64_t{64} * 64;
 
+// The largest frame a video may have: 4096 x 4096 pixels (DCI 4K and every laparoscope's sensor
+// fit). A damaged header can declare tens of megapixels in a stream of a few bytes, and FFmpeg
+// decodes such frames already while probing the stream (avformat_find_stream_info), for about
+// 0.3 s each; the probe's decoders refuse them, and a stream that declares more is refused.
+constexpr int64_t kMaxFramePixels = int64_t{4096} * 4096;
+
 int SwsColorspace(const AVFrame& f) {
   switch (StoredValue(f.colorspace)) {
     case AVCOL_SPC_BT709:
@@ -332,11 +338,20 @@ struct VideoReader::Impl {
     return image;
   }
 
+  // avformat_find_stream_info with every probe decoder capped at kMaxFramePixels.
+  int FindStreamInfo() {
+    std::vector<AVDictionary*> stream_options(format->nb_streams, nullptr);
+    for (AVDictionary*& o : stream_options) av_dict_set_int(&o, "max_pixels", kMaxFramePixels, 0);
+    const int r = avformat_find_stream_info(format, stream_options.data());
+    for (AVDictionary*& o : stream_options) av_dict_free(&o);
+    return r;
+  }
+
   void OpenFile(const std::string& file) {
     InstallFfmpegSettings();
     int r = avformat_open_input(&format, file.c_str(), nullptr, nullptr);
     ARREG_CHECK_INPUT(r >= 0, file, "", "cannot open video: ", AvErrorString(r));
-    r = avformat_find_stream_info(format, nullptr);
+    r = FindStreamInfo();
     ARREG_CHECK_INPUT(r >= 0, file, "", "cannot read stream information: ", AvErrorString(r));
     // The stream first, its decoder second: av_find_best_stream returns an error code, not a
     // stream index, when the best stream has no decoder, so the codec could not be named.
@@ -359,7 +374,12 @@ struct VideoReader::Impl {
     // decoder refuses frames above this count (a packet it cannot decode, handled like any
     // other damage).
     const int64_t declared = int64_t{stream->codecpar->width} * stream->codecpar->height;
-    if (declared > 0) decoder->max_pixels = std::max(kMaxPixelsFactor * declared, kMinMaxPixels);
+    ARREG_CHECK_INPUT(declared <= kMaxFramePixels, file, "", "frame size ", stream->codecpar->width,
+                      "x", stream->codecpar->height,
+                      " is above the supported maximum of 4096x4096 pixels");
+    if (declared > 0)
+      decoder->max_pixels =
+          std::min(std::max(kMaxPixelsFactor * declared, kMinMaxPixels), kMaxFramePixels);
     if (options.skip_loop_filter) decoder->skip_loop_filter = AVDISCARD_ALL;
     r = avcodec_open2(decoder, codec, nullptr);
     ARREG_CHECK_INPUT(r >= 0, file, "", "cannot open decoder '", codec->name,
@@ -374,7 +394,8 @@ struct VideoReader::Impl {
     fps = rate.num > 0 && rate.den > 0 ? av_q2d(rate) : 25.0;
     width = decoder->width;
     height = decoder->height;
-    ARREG_CHECK_INPUT(width > 0 && height > 0, file, "", "video stream has no frame size");
+    ARREG_CHECK_INPUT(width > 0 && height > 0, file, "",
+                      "video stream has no frame size (no frame decodable up to 4096x4096 pixels)");
 
     frame_count = static_cast<int>(stream->nb_frames);
     if (frame_count <= 0) {

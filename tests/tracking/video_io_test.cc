@@ -191,6 +191,21 @@ TEST(VideoReader, RandomBytesGiveAnErrorNamingTheFile) {
   EXPECT_THROW(reader.Open(dir + "/missing.mp4"), Error);
 }
 
+// A 32-byte MPEG-4 stream (a fuzzing finding) whose header declares 8188 x 7168 pixels: refused,
+// the limit named, without a frame of that size decoded (the stream probe's decoders are capped).
+TEST(VideoReader, FramesAboveTheMaximumSizeAreRefused) {
+  const std::string path =
+      std::string(ARREG_SOURCE_DIR) + "/tests/data/fuzz/video/timeout-8f690745a346";
+  VideoReader reader;
+  try {
+    reader.Open(path);
+    FAIL() << "a stream declaring 8188 x 7168 pixels was opened";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.file(), path);
+    EXPECT_NE(std::string(e.what()).find("4096x4096"), std::string::npos) << e.what();
+  }
+}
+
 TEST(VideoReader, TruncatedFileIsReadUpToTheLastGoodFrame) {
   const std::string dir = testing::ScratchDir("video_truncated");
   const std::string path = WriteClip(dir + "/clip.mp4", 60, 320, 240, 25.0);
