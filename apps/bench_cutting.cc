@@ -28,10 +28,12 @@
 #include "core/progress.h"
 #include "cutting/mechanics_update.h"
 #include "cutting/mesh_checks.h"
+#include "cutting/quadratic_cutter.h"
 #include "cutting/random_cuts.h"
 #include "cutting/structure_split.h"
 #include "cutting/system_conditioning.h"
 #include "cutting/tet_cutter.h"
+#include "mechanics/high_order_mesh.h"
 #include "option_parser.h"
 
 namespace arreg::cli {
@@ -154,17 +156,17 @@ std::string Plot(const std::vector<Run>& runs) {
       << lo << "</text>\n";
     for (size_t k = 0; k < runs.size(); ++k) {
       const Run& run = runs[k];
-      s << "<polyline fill='none' stroke='" << colors[static_cast<int>(run.eps * 10 + 0.5) % 4]
+      s << "<polyline fill='none' stroke='" << colors[std::lround(run.eps * 10) % 4]
         << "' stroke-dasharray='" << (run.method == "ours" ? "none" : "5,3") << "' points='";
       for (const StepRecord& r : run.steps)
         s << x0 + pad + (W - 2 * pad) * r.step / max_step << ","
-          << pad / 2 + (H - pad) * (1 - (value(r) - lo) / (hi - lo)) << " ";
+          << pad / 2.0 + (H - pad) * (1 - (value(r) - lo) / (hi - lo)) << " ";
       s << "'/>\n";
     }
   }
   for (size_t k = 0; k < runs.size(); ++k)
     s << "<text x='" << 20 + 120 * (k % 8) << "' y='" << H + 20 + 14 * (k / 8) << "' fill='"
-      << colors[static_cast<int>(runs[k].eps * 10 + 0.5) % 4] << "'>" << runs[k].method
+      << colors[std::lround(runs[k].eps * 10) % 4] << "'>" << runs[k].method
       << (runs[k].method == "ours" ? " (solid)" : " (dashed)") << " eps " << runs[k].eps
       << "</text>\n";
   s << "</svg>\n";
@@ -204,13 +206,22 @@ std::vector<cutting::SweepMesh> SweepMeshes(const std::string& shared_data) {
     RemoveUnreferencedVertices(&m.structure);
     meshes.push_back(std::move(m));
   }
-  meshes.push_back({"beam", MakeBeam(), {}});
+  meshes.push_back({"beam", MakeBeam(), {}, {}});
   return meshes;
 }
 
-int RunRandomSweep(int num_cuts, int seed, int threads, const std::string& shared_data,
+// Degree 2: the meshes raised straight, and the beam again with its faces bulged by 3 mm (curved
+// rest elements).
+void AddCurvedBeam(std::vector<cutting::SweepMesh>* meshes) {
+  cutting::SweepMesh m{"beam-curved", MakeBeam(), {}, {}};
+  m.quadratic_nodes = cutting::BulgedBoxQuadraticNodes(m.mesh, Eigen::Vector3d(100, 30, 20), 3);
+  meshes->push_back(std::move(m));
+}
+
+int RunRandomSweep(int num_cuts, int seed, int threads, int degree, const std::string& shared_data,
                    const std::string& json_path, const std::string& failures_dir) {
-  const std::vector<cutting::SweepMesh> meshes = SweepMeshes(shared_data);
+  std::vector<cutting::SweepMesh> meshes = SweepMeshes(shared_data);
+  if (degree == 2) AddCurvedBeam(&meshes);
   for (const cutting::SweepMesh& m : meshes)
     std::printf(
         "%s: %d vertices, %d tetrahedra%s\n", m.name.c_str(), m.mesh.num_vertices(),
@@ -224,6 +235,7 @@ int RunRandomSweep(int num_cuts, int seed, int threads, const std::string& share
   options.seed = static_cast<std::uint64_t>(seed);
   options.save_failures_dir = failures_dir;
   options.threads = threads;
+  options.degree = degree;
   std::optional<ProgressReporter> progress;
   progress.emplace("arreg bench cutting: random cut", stderr, ProgressOptionsFor(stderr));
   const cutting::SweepResult r = cutting::RunRandomCutSweep(
@@ -265,9 +277,9 @@ int RunRandomSweep(int num_cuts, int seed, int threads, const std::string& share
                           {"saved", v.saved_dir}});
   }
   std::printf(
-      "%d cuts made of %d drawn in %d sequences (%d ended early above %d elements), %zu "
-      "violations, %.1f s\n",
-      r.cuts, num_cuts, r.sequences, r.stopped_by_growth, options.max_tetrahedra,
+      "degree %d: %d cuts made of %d drawn in %d sequences (%d ended early above %d elements), "
+      "%zu violations, %.1f s\n",
+      degree, r.cuts, num_cuts, r.sequences, r.stopped_by_growth, options.max_tetrahedra,
       r.violations.size(), r.seconds);
   if (!json_path.empty()) {
     nlohmann::json j = {{"cuts", r.cuts},
@@ -276,6 +288,7 @@ int RunRandomSweep(int num_cuts, int seed, int threads, const std::string& share
                         {"sequences_ended_by_growth", r.stopped_by_growth},
                         {"max_tetrahedra", options.max_tetrahedra},
                         {"threads", threads},
+                        {"degree", degree},
                         {"violations", r.violations.size()},
                         {"seconds", r.seconds},
                         {"seed", seed},
@@ -287,17 +300,72 @@ int RunRandomSweep(int num_cuts, int seed, int threads, const std::string& share
   return r.violations.empty() ? 0 : 1;
 }
 
+// The thesis' quadratic beam experiment (6.1.4, table 6.4): the plane of the linear experiment
+// through beams of three resolutions raised to degree 2, in one event with separation; control
+// points added per crossed element n(v).
+int RunQuadraticBeams(const std::string& json_path) {
+  struct Beam {
+    Eigen::Vector3i cells;
+    int thesis_elements;
+    double thesis_nodes_per_nv;
+  };
+  const Beam beams[] = {{{10, 3, 2}, 371, 10.6}, {{12, 5, 2}, 712, 10.2}, {{22, 7, 5}, 4621, 9.6}};
+  std::printf(
+      "quadratic beams 100 x 30 x 20 mm, the plane of the linear experiment in one event "
+      "with separation:\ncontrol points added per n(v) (thesis table 6.4: 10.6, 10.2, 9.6 "
+      "n(v) at 371, 712, 4,621 elements)\n");
+  std::printf("%8s %6s %6s | %-8s %4s | %8s %8s %9s\n", "elements", "nodes", "n(v)", "method",
+              "eps", "added", "per n(v)", "thesis");
+  nlohmann::json rows = nlohmann::json::array();
+  for (const Beam& b : beams) {
+    const TetMesh linear = MakeBoxTetMesh(Eigen::Vector3d(100, 30, 20), b.cells, BoxTetSplit::kSix);
+    const mechanics::HighOrderTetMesh beam = mechanics::RaiseTetMesh(linear, 2);
+    CuttableMesh probe(linear);
+    CutOptions p;
+    p.snap_epsilon = 0;
+    const int nv = probe.Cut(PlaneUpTo(40), p).num_crossed_tetrahedra;
+    for (RemeshMethod method : {RemeshMethod::kFlips, RemeshMethod::kBielser})
+      for (double eps : {0.0, 0.1, 0.2, 0.3}) {
+        cutting::QuadraticCuttableMesh mesh(beam);
+        CutOptions o;
+        o.method = method;
+        o.snap_epsilon = eps;
+        const CutSummary s = mesh.Cut(PlaneUpTo(40), o);
+        ARREG_ASSERT(s.status == CutStatus::kCut, s.message);
+        const int added = mesh.num_nodes() - beam.num_nodes();
+        const char* name = method == RemeshMethod::kFlips ? "ours" : "bielser";
+        std::printf("%8d %6d %6d | %-8s %4.1f | %8d %8.2f %9.1f\n", linear.num_tetrahedra(),
+                    beam.num_nodes(), nv, name, eps, added, static_cast<double>(added) / nv,
+                    b.thesis_nodes_per_nv);
+        rows.push_back({{"elements", linear.num_tetrahedra()},
+                        {"nodes", beam.num_nodes()},
+                        {"nv", nv},
+                        {"method", name},
+                        {"eps", eps},
+                        {"nodes_added", added},
+                        {"nodes_added_per_nv", static_cast<double>(added) / nv},
+                        {"thesis_elements", b.thesis_elements},
+                        {"thesis_nodes_added_per_nv", b.thesis_nodes_per_nv}});
+      }
+  }
+  if (!json_path.empty())
+    WriteFileAtomic(json_path, [&](std::ostream& out) {
+      out << nlohmann::json{{"degree", 2}, {"quadratic_beam", rows}}.dump(2) << "\n";
+    });
+  return 0;
+}
+
 }  // namespace
 
 int RunBenchCutting(int argc, char** argv) {
   std::string json_path, svg_path, failures_dir;
   std::string shared_data =
       std::getenv("ARREG_SHARED_DATA") ? std::getenv("ARREG_SHARED_DATA") : "../shared/data";
-  int steps = 10, repeats = 21, structure_rings = 24, random = 0, seed = 1, threads = 1;
+  int steps = 10, repeats = 21, structure_rings = 24, random = 0, seed = 1, threads = 1, degree = 1;
   OptionParser parser(
       "arreg bench cutting [--steps N] [--repeats N] [--structure-rings N] [--json OUT] "
-      "[--svg OUT] | --random N [--seed S] [--threads N] [--json OUT] [--save-failures DIR] "
-      "[--shared-data DIR]",
+      "[--svg OUT] | --degree 2 [--json OUT] | --random N [--degree 1|2] [--seed S] [--threads N] "
+      "[--json OUT] [--save-failures DIR] [--shared-data DIR]",
       "Cuts the thesis beam progressively with our remesher and the Bielser-style "
       "baseline at snapping thresholds 0, 0.1, 0.2, 0.3 (vertex/element growth, "
       "minimum dihedral angle, condition number of M + dt^2 K per step), and "
@@ -305,7 +373,10 @@ int RunBenchCutting(int argc, char** argv) {
       "internal structure (a sphere, 2,208 triangles by default) along its crack. "
       "With --random N: N random cuts drawn in sequences of up to 20 on the SOFA livers, "
       "the kidney and the beam (a sequence ends early once its mesh has 10,000 elements), "
-      "every cut checked (docs/cutting.md); exit status 1 when a check failed.");
+      "every cut checked (docs/cutting.md); exit status 1 when a check failed. With --degree 2: "
+      "the quadratic remesher, on beams of three resolutions (thesis table 6.4) or, with "
+      "--random, in the sweep (with a fifth mesh, the beam with curved faces).");
+  parser.AddInt("degree", &degree, "K", "element degree: 1 (default) or 2 (quadratic remesher)");
   parser.AddInt("random", &random, "N", "run the random-cut sweep of N cuts instead");
   parser.AddInt("seed", &seed, "S", "seed of the random-cut sweep (default 1)");
   parser.AddInt("threads", &threads, "N",
@@ -328,8 +399,10 @@ int RunBenchCutting(int argc, char** argv) {
   ARREG_CHECK_INPUT(random >= 0, "", "--random", "must be >= 0");
   ARREG_CHECK_INPUT(seed >= 0, "", "--seed", "must be >= 0");
   ARREG_CHECK_INPUT(threads >= 1, "", "--threads", "must be >= 1");
+  ARREG_CHECK_INPUT(degree == 1 || degree == 2, "", "--degree", "must be 1 or 2, got ", degree);
   if (random > 0)
-    return RunRandomSweep(random, seed, threads, shared_data, json_path, failures_dir);
+    return RunRandomSweep(random, seed, threads, degree, shared_data, json_path, failures_dir);
+  if (degree == 2) return RunQuadraticBeams(json_path);
 
   const TetMesh beam = MakeBeam();
   cutting::ConditioningOptions cond;

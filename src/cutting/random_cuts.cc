@@ -19,7 +19,9 @@
 #include "core/mesh_ops.h"
 #include "cutting/mechanics_update.h"
 #include "cutting/mesh_checks.h"
+#include "cutting/quadratic_cutter.h"
 #include "cutting/structure_split.h"
+#include "mechanics/curved_boundary.h"
 #include "mechanics/elastic_energy.h"
 #include "mechanics/integrator.h"
 #include "mechanics/mechanical_state.h"
@@ -162,6 +164,7 @@ void SweepOptions::Check() const {
   ARREG_CHECK_INPUT(num_cuts >= 1, "", "num_cuts", "must be >= 1");
   ARREG_CHECK_INPUT(max_tetrahedra >= 1, "", "max_tetrahedra", "must be >= 1");
   ARREG_CHECK_INPUT(threads >= 1, "", "threads", "must be >= 1");
+  ARREG_CHECK_INPUT(degree == 1 || degree == 2, "", "degree", "must be 1 or 2, got ", degree);
   cuts.Check();
 }
 
@@ -311,11 +314,63 @@ RandomCut RandomCutGenerator::Next(const CuttableMesh& mesh, RandomCutKind kind)
   return cut;
 }
 
+RowMatX3d BulgedBoxQuadraticNodes(const TetMesh& box, const Eigen::Vector3d& size,
+                                  double bulge_mm) {
+  mechanics::SurfaceRaiseOptions o;
+  o.project = [size, bulge_mm](const Eigen::Vector3d& p) {
+    Eigen::Vector3d q = p;
+    for (int axis = 0; axis < 3; ++axis)
+      for (int side = 0; side < 2; ++side) {
+        if (std::abs(p[axis] - side * size[axis]) > 1e-9 * size.norm()) continue;
+        double bump = bulge_mm;
+        for (int other = 0; other < 3; ++other)
+          if (other != axis) bump *= std::sin(M_PI * p[other] / size[other]);
+        q[axis] += (side == 1 ? 1 : -1) * bump;
+      }
+    return q;
+  };
+  return mechanics::RaiseTetMeshOntoSurface(box, 2, o).nodes;
+}
+
 void RandomCutGenerator::Record(const RandomCut& cut, CutStatus status) {
   if (status == CutStatus::kCut && cut.has_front) fronts_.push_back(cut);
 }
 
 namespace {
+
+using Failure = std::optional<std::pair<std::string, std::string>>;
+
+// The checks of a linear mesh after a cut: positive, conforming, manifold, every element's rest
+// volume positive as the mechanics compute it, and the rest volume kept.
+Failure CheckCutCorners(const TetMesh& rest, double volume, MeshInvariants* invariants) {
+  const MeshInvariants inv = CheckMeshInvariants(rest);
+  *invariants = inv;
+  if (inv.num_nonpositive > 0 || inv.num_repeated_vertex > 0)
+    return std::make_pair(std::string("positive"), inv.ToString());
+  if (inv.num_overshared_faces > 0 || inv.num_duplicate_elements > 0)
+    return std::make_pair(std::string("conforming"), inv.ToString());
+  if (!inv.ok()) return std::make_pair(std::string("manifold"), inv.ToString());
+  // Positive exact orientation is not enough for the simulation: it needs a positive rest
+  // volume as it computes it (ComputeTetRestData), e.g. ApplyCutChange refuses the element.
+  for (int t = 0; t < rest.num_tetrahedra(); ++t) {
+    mechanics::TetRestData data;
+    const auto x = [&](int k) { return Eigen::Vector3d(rest.vertices.row(rest.tetrahedra(t, k))); };
+    if (!mechanics::ComputeTetRestData(x(0), x(1), x(2), x(3), mechanics::Material(), &data)) {
+      std::ostringstream s;
+      s << "element " << t << " has rest volume " << data.volume_mm3
+        << " mm^3 in floating point (exact orientation positive)";
+      return std::make_pair(std::string("zero-volume"), s.str());
+    }
+  }
+  if (!(std::abs(inv.total_volume - volume) <= 1e-9 * std::abs(volume))) {
+    std::ostringstream s;
+    s.precision(17);
+    s << "rest volume " << inv.total_volume << " against " << volume << " (relative change "
+      << (inv.total_volume - volume) / volume << ")";
+    return std::make_pair(std::string("volume"), s.str());
+  }
+  return std::nullopt;
+}
 
 // The checks after every cut on one mesh of a sequence: the cutter, a mechanical state that
 // follows it, the structure split along the crack.
@@ -347,33 +402,8 @@ class SequenceRunner {
     *status = summary.status;
     if (summary.status != CutStatus::kCut) return std::nullopt;
     const TetMesh rest = mesh_.RestMesh();
-    const MeshInvariants inv = CheckMeshInvariants(rest);
-    if (inv.num_nonpositive > 0 || inv.num_repeated_vertex > 0)
-      return std::make_pair(std::string("positive"), inv.ToString());
-    if (inv.num_overshared_faces > 0 || inv.num_duplicate_elements > 0)
-      return std::make_pair(std::string("conforming"), inv.ToString());
-    if (!inv.ok()) return std::make_pair(std::string("manifold"), inv.ToString());
-    // Positive exact orientation is not enough for the simulation: it needs a positive rest
-    // volume as it computes it (ComputeTetRestData), e.g. ApplyCutChange refuses the element.
-    for (int t = 0; t < rest.num_tetrahedra(); ++t) {
-      mechanics::TetRestData data;
-      const auto x = [&](int k) {
-        return Eigen::Vector3d(rest.vertices.row(rest.tetrahedra(t, k)));
-      };
-      if (!mechanics::ComputeTetRestData(x(0), x(1), x(2), x(3), mechanics::Material(), &data)) {
-        std::ostringstream s;
-        s << "element " << t << " has rest volume " << data.volume_mm3
-          << " mm^3 in floating point (exact orientation positive)";
-        return std::make_pair(std::string("zero-volume"), s.str());
-      }
-    }
-    if (!(std::abs(inv.total_volume - volume_) <= 1e-9 * std::abs(volume_))) {
-      std::ostringstream s;
-      s.precision(17);
-      s << "rest volume " << inv.total_volume << " against " << volume_ << " (relative change "
-        << (inv.total_volume - volume_) / volume_ << ")";
-      return std::make_pair(std::string("volume"), s.str());
-    }
+    MeshInvariants inv;
+    if (auto failed = CheckCutCorners(rest, volume_, &inv)) return failed;
     // The mechanical state follows the change and gives the cutter's mesh.
     try {
       ApplyCutChange(change, &state_);
@@ -459,6 +489,66 @@ class SequenceRunner {
   double volume_ = 0;
 };
 
+// The checks after every cut of a degree-2 sequence: the corner mesh's (CheckCutCorners), one
+// control point per edge, positive Jacobians and the quadratic rest volume.
+class QuadraticSequenceRunner {
+ public:
+  explicit QuadraticSequenceRunner(const SweepMesh& mesh) : mesh_(Raise(mesh)) {
+    const mechanics::HighOrderTetMesh rest = mesh_.RestMesh();
+    volume_ = CheckQuadraticMesh(rest).volume;
+    corner_volume_ = CheckMeshInvariants(mesh_.skeleton().RestMesh()).total_volume;
+  }
+
+  const CuttableMesh& mesh() const { return mesh_.skeleton(); }
+
+  Failure Apply(const RandomCut& cut, CutStatus* status) {
+    CutSummary summary;
+    try {
+      summary = mesh_.Cut(cut.surface, cut.options);
+    } catch (const std::exception& e) {
+      return std::make_pair(std::string("exception"), std::string(e.what()));
+    }
+    *status = summary.status;
+    if (summary.status != CutStatus::kCut) return std::nullopt;
+    MeshInvariants inv;
+    if (auto failed = CheckCutCorners(mesh_.skeleton().RestMesh(), corner_volume_, &inv))
+      return failed;
+    const QuadraticMeshInvariants q = CheckQuadraticMesh(mesh_.RestMesh());
+    std::ostringstream s;
+    s.precision(17);
+    if (q.num_edge_mismatches > 0 || q.num_shared_edge_nodes > 0) {
+      s << q.num_edge_mismatches << " edges with differing control points, "
+        << q.num_shared_edge_nodes << " control points on two edges";
+      return std::make_pair(std::string("quadratic-conforming"), s.str());
+    }
+    if (q.num_nonpositive_jacobians > 0) {
+      s << q.num_nonpositive_jacobians << " elements with det J <= 0 at a sampled point";
+      return std::make_pair(std::string("jacobian"), s.str());
+    }
+    if (!(std::abs(q.volume - volume_) <= 1e-9 * std::abs(volume_))) {
+      s << "quadratic rest volume " << q.volume << " against " << volume_ << " (relative change "
+        << (q.volume - volume_) / volume_ << ")";
+      return std::make_pair(std::string("volume"), s.str());
+    }
+    return std::nullopt;
+  }
+
+ private:
+  static mechanics::HighOrderTetMesh Raise(const SweepMesh& mesh) {
+    mechanics::HighOrderTetMesh q = mechanics::RaiseTetMesh(mesh.mesh, 2);
+    if (mesh.quadratic_nodes.rows() > 0) {
+      ARREG_CHECK_INPUT(mesh.quadratic_nodes.rows() == q.num_nodes(), "", "quadratic_nodes",
+                        mesh.name, ": expected ", q.num_nodes(), " rows, got ",
+                        mesh.quadratic_nodes.rows());
+      q.nodes = mesh.quadratic_nodes;
+    }
+    return q;
+  }
+
+  QuadraticCuttableMesh mesh_;
+  double volume_ = 0, corner_volume_ = 0;
+};
+
 std::string Pad3(int k) {
   char buf[16];
   std::snprintf(buf, sizeof(buf), "%03d", k);
@@ -489,12 +579,13 @@ struct SequenceResult {
   bool stopped_by_growth = false;
 };
 
+template <class Runner>
 SequenceResult RunSequence(const SweepMesh& source, const SweepOptions& options, int s,
                            int length) {
   using Clock = std::chrono::steady_clock;
   SequenceResult result;
   RandomCutGenerator generator(SequenceSeed(options.seed, s), options.cuts);
-  SequenceRunner runner(source);
+  Runner runner(source);
   std::vector<RandomCut> made;
   for (int i = 0; i < length; ++i) {
     if (runner.mesh().num_tetrahedra() > options.max_tetrahedra) {
@@ -528,7 +619,7 @@ SequenceResult RunSequence(const SweepMesh& source, const SweepOptions& options,
         v.saved_dir = options.save_failures_dir + "/" + source.name + "_seed" +
                       std::to_string(options.seed) + "_seq" + std::to_string(s) + "_cut" +
                       std::to_string(i);
-        SaveCase(v.saved_dir, source, made, v);
+        SaveCase(v.saved_dir, source, made, v, options.degree);
         WriteTetMesh(v.saved_dir + "/before.vtk", before);
       }
       result.violations.push_back(v);
@@ -567,7 +658,10 @@ SweepResult RunRandomCutSweep(const std::vector<SweepMesh>& meshes, const SweepO
   const auto work = [&]() {
     for (int s = next++; s < static_cast<int>(lengths.size()); s = next++) {
       try {
-        results[s] = RunSequence(meshes[s % meshes.size()], options, s, lengths[s]);
+        const SweepMesh& mesh = meshes[s % meshes.size()];
+        results[s] = options.degree == 2
+                         ? RunSequence<QuadraticSequenceRunner>(mesh, options, s, lengths[s])
+                         : RunSequence<SequenceRunner>(mesh, options, s, lengths[s]);
       } catch (...) {
         std::lock_guard<std::mutex> lock(progress_mutex);
         if (!error) error = std::current_exception();
@@ -598,7 +692,7 @@ SweepResult RunRandomCutSweep(const std::vector<SweepMesh>& meshes, const SweepO
 }
 
 void SaveCase(const std::string& dir, const SweepMesh& mesh, const std::vector<RandomCut>& cuts,
-              const Violation& violation) {
+              const Violation& violation, int degree) {
   CreateDirectories(dir);
   WriteTetMesh(dir + "/initial.vtk", mesh.mesh);
   if (mesh.structure.num_faces() > 0) WriteSurfaceMesh(dir + "/structure.obj", mesh.structure);
@@ -609,6 +703,13 @@ void SaveCase(const std::string& dir, const SweepMesh& mesh, const std::vector<R
   j["index"] = violation.index;
   j["check"] = violation.check;
   j["detail"] = violation.detail;
+  j["degree"] = degree;
+  if (degree == 2 && mesh.quadratic_nodes.rows() > 0) {
+    j["quadratic_nodes"] = nlohmann::json::array();
+    for (Eigen::Index n = 0; n < mesh.quadratic_nodes.rows(); ++n)
+      j["quadratic_nodes"].push_back(
+          {mesh.quadratic_nodes(n, 0), mesh.quadratic_nodes(n, 1), mesh.quadratic_nodes(n, 2)});
+  }
   j["cuts"] = nlohmann::json::array();
   for (size_t k = 0; k < cuts.size(); ++k) {
     const std::string file = "cut_" + Pad3(static_cast<int>(k)) + ".obj";
@@ -623,6 +724,33 @@ void SaveCase(const std::string& dir, const SweepMesh& mesh, const std::vector<R
   WriteFileAtomic(dir + "/case.json", [&](std::ostream& out) { out << j.dump(2) << "\n"; });
 }
 
+namespace {
+
+template <class Runner>
+std::vector<Violation> Replay(const SweepMesh& mesh, const std::vector<RandomCut>& cuts,
+                              const nlohmann::json& j) {
+  Runner runner(mesh);
+  std::vector<Violation> found;
+  for (size_t k = 0; k < cuts.size(); ++k) {
+    CutStatus status = CutStatus::kNoCrossing;
+    if (const auto failed = runner.Apply(cuts[k], &status)) {
+      Violation v;
+      v.mesh = mesh.name;
+      v.seed = j.value("seed", std::uint64_t{0});
+      v.sequence = j.value("sequence", 0);
+      v.index = static_cast<int>(k);
+      v.kind = cuts[k].kind;
+      v.check = failed->first;
+      v.detail = failed->second;
+      found.push_back(v);
+      break;
+    }
+  }
+  return found;
+}
+
+}  // namespace
+
 std::vector<Violation> ReplayCase(const std::string& dir) {
   const std::string json_path = dir + "/case.json";
   nlohmann::json j;
@@ -633,8 +761,13 @@ std::vector<Violation> ReplayCase(const std::string& dir) {
   }
   SweepMesh mesh;
   std::vector<RandomCut> cuts;
+  int degree = 1;
+  std::vector<std::array<double, 3>> quadratic_nodes;
   try {
     mesh.name = j.at("mesh").get<std::string>();
+    degree = j.value("degree", 1);
+    if (j.contains("quadratic_nodes"))
+      quadratic_nodes = j.at("quadratic_nodes").get<std::vector<std::array<double, 3>>>();
     for (const auto& c : j.at("cuts")) {
       RandomCut cut;
       cut.kind = RandomCutKindFromName(c.at("kind").get<std::string>(), json_path);
@@ -661,24 +794,13 @@ std::vector<Violation> ReplayCase(const std::string& dir) {
   }
   mesh.mesh = ReadTetMesh(dir + "/initial.vtk");
   if (FileExists(dir + "/structure.obj")) mesh.structure = ReadSurfaceMesh(dir + "/structure.obj");
-  SequenceRunner runner(mesh);
-  std::vector<Violation> found;
-  for (size_t k = 0; k < cuts.size(); ++k) {
-    CutStatus status = CutStatus::kNoCrossing;
-    if (const auto failed = runner.Apply(cuts[k], &status)) {
-      Violation v;
-      v.mesh = mesh.name;
-      v.seed = j.value("seed", std::uint64_t{0});
-      v.sequence = j.value("sequence", 0);
-      v.index = static_cast<int>(k);
-      v.kind = cuts[k].kind;
-      v.check = failed->first;
-      v.detail = failed->second;
-      found.push_back(v);
-      break;
-    }
-  }
-  return found;
+  ARREG_CHECK_INPUT(degree == 1 || degree == 2, json_path, "degree", "must be 1 or 2, got ",
+                    degree);
+  mesh.quadratic_nodes.resize(static_cast<Eigen::Index>(quadratic_nodes.size()), 3);
+  for (size_t n = 0; n < quadratic_nodes.size(); ++n)
+    for (int c = 0; c < 3; ++c) mesh.quadratic_nodes(n, c) = quadratic_nodes[n][c];
+  return degree == 2 ? Replay<QuadraticSequenceRunner>(mesh, cuts, j)
+                     : Replay<SequenceRunner>(mesh, cuts, j);
 }
 
 }  // namespace arreg::cutting

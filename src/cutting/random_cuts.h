@@ -87,7 +87,16 @@ struct SweepMesh {
   std::string name;
   TetMesh mesh;
   SurfaceMesh structure;  // an internal structure (closed, outward), or no faces
+  // Degree-2 sweeps: the control points of mechanics::RaiseTetMesh(mesh, 2) (#N x 3, that
+  // numbering), e.g. a raise onto a smooth surface; empty for the straight raise.
+  RowMatX3d quadratic_nodes;
 };
+
+// The control points of mechanics::RaiseTetMesh(box, 2) with the faces of the box [0, size]
+// bulged outwards by bulge_mm x sin(pi u) sin(pi v) (u, v the face's coordinates over [0, 1]: zero
+// on the box's edges), the interior ones relaxed (RaiseTetMeshOntoSurface): a mesh with curved rest
+// elements for the degree-2 sweep and tests. `box` spans [0, size].
+RowMatX3d BulgedBoxQuadraticNodes(const TetMesh& box, const Eigen::Vector3d& size, double bulge_mm);
 
 struct SweepOptions {
   // Cuts drawn (>= 1; default 1000): the sequences' lengths sum to it. Fewer are made when
@@ -101,7 +110,10 @@ struct SweepOptions {
   // repeated cuts refine the mesh (docs/cutting.md, "Limits"), and a model of that size is
   // beyond the real-time budget the remesher is made for.
   int max_tetrahedra = 10000;
-  int threads = 1;     // sequences cut in parallel (>= 1; the result does not depend on it)
+  int threads = 1;  // sequences cut in parallel (>= 1; the result does not depend on it)
+  // Element degree: 1 (CuttableMesh) or 2 (QuadraticCuttableMesh on the meshes raised to degree
+  // 2); default 1.
+  int degree = 1;
   void Check() const;  // throws arreg::Error naming the field
 };
 
@@ -113,7 +125,8 @@ struct Violation {
   int index = 0;           // cut number within the sequence (0-based)
   RandomCutKind kind = RandomCutKind::kPlane;
   std::string check;  // exception, positive, conforming, manifold, zero-volume, volume,
-                      // mechanics-state, mechanics, structure
+                      // mechanics-state, mechanics, structure; degree 2: quadratic-conforming,
+                      // jacobian
   std::string detail;
   std::string saved_dir;  // where the case was written, or ""
 };
@@ -146,17 +159,21 @@ struct SweepResult {
 // one implicit Euler step under gravity (the 10 % of the mesh lowest along x held fixed)
 // converges with finite positions, and, for a mesh with a structure, SplitAlongCrack succeeds
 // and each connected piece of the split is a closed oriented manifold. A violation ends its
-// sequence (later cuts would cut a broken mesh). `progress` (optional) is called after every
-// sequence, from one thread at a time.
+// sequence (later cuts would cut a broken mesh). With degree 2 the cutter is a
+// QuadraticCuttableMesh and the checks are the corner mesh's above (mechanics and structure
+// aside), CheckQuadraticMesh (one control point per edge: quadratic-conforming; det J > 0 at the
+// sampled points: jacobian) and the quadratic elements' rest volume to 1e-9 relative (volume).
+// `progress` (optional) is called after every sequence, from one thread at a time.
 SweepResult RunRandomCutSweep(const std::vector<SweepMesh>& meshes, const SweepOptions& options,
                               const std::function<void(int done, int total)>& progress = {});
 
 // Writes an offending case to `dir` (created): initial.vtk (the sweep mesh), structure.obj
 // (when it has one), before.vtk (the rest mesh before the failing cut), cut_NNN.obj (every cut
 // of the sequence up to the failing one, in order) and case.json (mesh, seed, sequence, index,
-// check, detail, and per cut its kind and CutOptions). Files are written atomically.
+// check, detail, degree, the mesh's quadratic_nodes when it has them, and per cut its kind and
+// CutOptions). Files are written atomically.
 void SaveCase(const std::string& dir, const SweepMesh& mesh, const std::vector<RandomCut>& cuts,
-              const Violation& violation);
+              const Violation& violation, int degree = 1);
 
 // Replays a case written by SaveCase: the cuts in order on initial.vtk with every check. Returns
 // the violations found (at most one: a sequence stops at its first); throws arreg::Error naming

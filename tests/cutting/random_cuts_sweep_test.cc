@@ -1,6 +1,7 @@
-// The CI's random-cut sweep: `arreg bench cutting --random 1000` (the SOFA livers when
-// ../shared/data has them, the kidney with its internal structure, the beam) ends with no
-// violation, and its JSON holds the counts per kind.
+// The CI's random-cut sweeps: `arreg bench cutting --random 1000` (the SOFA livers when
+// ../shared/data has them, the kidney with its internal structure, the beam) and the same with
+// `--degree 2` (the quadratic remesher; a fifth mesh with curved faces) end with no violation,
+// and their JSON holds the counts per kind.
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
@@ -11,11 +12,12 @@
 
 namespace {
 
-TEST(RandomCutSweep, ThousandCutsWithoutViolation) {
+void ExpectCleanSweep(int degree) {
   const std::string binary = std::string(ARREG_BINARY_DIR) + "/apps/arreg";
   if (!arreg::FileExists(binary)) GTEST_SKIP() << "arreg binary not built";
-  const std::string dir = arreg::testing::ScratchDir("random_cut_sweep");
-  const std::string command = binary + " bench cutting --random 1000 --seed 1 --json " + dir +
+  const std::string dir = arreg::testing::ScratchDir("random_cut_sweep_p" + std::to_string(degree));
+  const std::string command = binary + " bench cutting --random 1000 --seed 1 --degree " +
+                              std::to_string(degree) + " --json " + dir +
                               "/sweep.json --save-failures " + dir + "/failures 2>&1";
   const arreg::testing::CommandResult run = arreg::testing::RunCommand(command);
   const std::string& output = run.output;
@@ -29,6 +31,10 @@ TEST(RandomCutSweep, ThousandCutsWithoutViolation) {
   EXPECT_EQ(j.at("violations").get<int>(), 0) << j.at("violation_list").dump(2);
   EXPECT_TRUE(j.at("per_mesh").contains("kidney"));
   EXPECT_TRUE(j.at("per_mesh").contains("beam"));
+  EXPECT_EQ(j.at("degree").get<int>(), degree);
+  if (degree == 2) {
+    EXPECT_TRUE(j.at("per_mesh").contains("beam-curved"));
+  }
   int crossed = 0;
   for (const char* kind : {"plane", "sphere", "cylinder", "bent-sheet", "partial", "crack-front",
                            "graze-vertex", "graze-edge", "graze-face"}) {
@@ -38,5 +44,9 @@ TEST(RandomCutSweep, ThousandCutsWithoutViolation) {
   }
   EXPECT_GT(crossed, 0.7 * j.at("cuts").get<int>());
 }
+
+TEST(RandomCutSweep, ThousandCutsWithoutViolation) { ExpectCleanSweep(1); }
+
+TEST(RandomCutSweep, ThousandQuadraticCutsWithoutViolation) { ExpectCleanSweep(2); }
 
 }  // namespace

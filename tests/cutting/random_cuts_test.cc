@@ -15,6 +15,8 @@
 #include "core/mesh_io.h"
 #include "core/mesh_ops.h"
 #include "cutting/mesh_checks.h"
+#include "cutting/quadratic_cutter.h"
+#include "mechanics/high_order_mesh.h"
 #include "test_util.h"
 
 namespace arreg::cutting {
@@ -152,10 +154,10 @@ TEST(RandomCuts, GeneratorIsDeterministic) {
 // cuts cross the mesh.
 TEST(RandomCuts, SweepOfAHundredAndFiftyCutsKeepsEveryCheck) {
   std::vector<SweepMesh> meshes;
-  meshes.push_back({"beam", Beam(), {}});
+  meshes.push_back({"beam", Beam(), {}, {}});
   const std::string liver = testing::SharedDataPath("meshes/sofa/liver.msh");
   if (!liver.empty()) {
-    SweepMesh m{"liver", ReadTetMesh(liver), {}};
+    SweepMesh m{"liver", ReadTetMesh(liver), {}, {}};
     m.mesh.triangles.resize(0, 3);
     FixOrientation(&m.mesh);
     meshes.push_back(std::move(m));
@@ -188,7 +190,7 @@ TEST(RandomCuts, SweepOfAHundredAndFiftyCutsKeepsEveryCheck) {
 // error naming it.
 TEST(RandomCuts, SavedCaseReplays) {
   const std::string dir = testing::ScratchDir("random_cuts_replay");
-  SweepMesh mesh{"beam", Beam(), {}};
+  SweepMesh mesh{"beam", Beam(), {}, {}};
   RandomCutGenerator generator(3);
   CuttableMesh cutter(mesh.mesh);
   std::vector<RandomCut> cuts;
@@ -214,6 +216,48 @@ TEST(RandomCuts, SavedCaseReplays) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("cut_002.obj"), std::string::npos) << e.what();
   }
+}
+
+// A degree-2 case keeps its degree and its curved control points: it replays clean, and with one
+// control point moved through its element the replay reports the inverted element.
+TEST(RandomCuts, SavedQuadraticCaseReplays) {
+  const std::string dir = testing::ScratchDir("random_cuts_replay_p2");
+  const Eigen::Vector3d size(60, 20, 16);
+  SweepMesh mesh{"beam-curved", MakeBoxTetMesh(size, Eigen::Vector3i(6, 2, 2)), {}, {}};
+  mesh.quadratic_nodes = BulgedBoxQuadraticNodes(mesh.mesh, size, 1.5);
+  mechanics::HighOrderTetMesh raised = mechanics::RaiseTetMesh(mesh.mesh, 2);
+  raised.nodes = mesh.quadratic_nodes;
+  QuadraticCuttableMesh cutter(raised);
+  RandomCutGenerator generator(5);
+  std::vector<RandomCut> cuts;
+  int made = 0;
+  for (int i = 0; i < 5; ++i) {
+    RandomCut cut = generator.Next(cutter.skeleton());
+    const CutSummary s = cutter.Cut(cut.surface, cut.options);
+    made += s.status == CutStatus::kCut;
+    generator.Record(cut, s.status);
+    cuts.push_back(std::move(cut));
+  }
+  ASSERT_GT(made, 1);
+  Violation v;
+  v.mesh = mesh.name;
+  SaveCase(dir + "/case", mesh, cuts, v, 2);
+  const nlohmann::json c = nlohmann::json::parse(ReadFileToString(dir + "/case/case.json"));
+  EXPECT_EQ(c.at("degree").get<int>(), 2);
+  EXPECT_EQ(c.at("quadratic_nodes").size(), static_cast<size_t>(raised.num_nodes()));
+  EXPECT_TRUE(ReplayCase(dir + "/case").empty());
+  // The control point of element 0's edge (0, 1) (BernsteinIndices(2): corners first, then
+  // (1,1,0,0)) moved 40 mm along that edge: det J < 0 near corner 1.
+  SweepMesh broken = mesh;
+  const int node = raised.elements(0, 4);
+  ASSERT_GE(node, raised.num_vertices);
+  broken.quadratic_nodes.row(node) +=
+      40 * (raised.nodes.row(raised.elements(0, 1)) - raised.nodes.row(raised.elements(0, 0)))
+               .normalized();
+  SaveCase(dir + "/broken", broken, cuts, v, 2);
+  const std::vector<Violation> found = ReplayCase(dir + "/broken");
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_EQ(found[0].check, "jacobian");
 }
 
 // Saved sweep cases that failed a check before the remesher was fixed replay without violation.
@@ -265,6 +309,9 @@ TEST(RandomCuts, OptionsCheckNamesTheField) {
     EXPECT_NE(std::string(e.what()).find("min_graze_fraction"), std::string::npos);
   }
   EXPECT_THROW(RandomCutKindFromName("cone", "kind"), Error);
+  SweepOptions cubic;
+  cubic.degree = 3;
+  EXPECT_THROW(cubic.Check(), Error);
   EXPECT_EQ(RandomCutKindFromName("graze-edge", "kind"), RandomCutKind::kGrazeEdge);
 }
 
