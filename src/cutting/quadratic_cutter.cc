@@ -46,15 +46,10 @@ const std::vector<ControlSlot>& QuadraticSlots() {
 
 constexpr int kEdgePairs[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
 
-// The corner mesh of a degree-2 mesh with the corners' current positions and velocities.
-CuttableMesh Skeleton(const mechanics::HighOrderTetMesh& mesh, const RowMatX3d& positions,
-                      const RowMatX3d& velocities) {
+// The corner mesh of a degree-2 mesh.
+TetMesh CornerMesh(const mechanics::HighOrderTetMesh& mesh) {
   ARREG_CHECK_INPUT(mesh.degree == 2, "", "degree", "quadratic cutting needs degree 2, got ",
                     mesh.degree);
-  ARREG_CHECK_INPUT(positions.rows() == mesh.num_nodes(), "", "positions", "expected ",
-                    mesh.num_nodes(), " rows, got ", positions.rows());
-  ARREG_CHECK_INPUT(velocities.rows() == mesh.num_nodes(), "", "velocities", "expected ",
-                    mesh.num_nodes(), " rows, got ", velocities.rows());
   const std::vector<ControlSlot>& slots = QuadraticSlots();
   TetMesh corners;
   corners.vertices = mesh.nodes.topRows(mesh.num_vertices);
@@ -62,26 +57,34 @@ CuttableMesh Skeleton(const mechanics::HighOrderTetMesh& mesh, const RowMatX3d& 
   for (int t = 0; t < mesh.num_elements(); ++t)
     for (size_t k = 0; k < slots.size(); ++k)
       if (slots[k].j < 0) corners.tetrahedra(t, slots[k].i) = mesh.elements(t, k);
-  return CuttableMesh(corners, positions.topRows(mesh.num_vertices),
-                      velocities.topRows(mesh.num_vertices));
+  return corners;
 }
 
 }  // namespace
 
-QuadraticCuttableMesh::QuadraticCuttableMesh(const mechanics::HighOrderTetMesh& mesh)
-    : QuadraticCuttableMesh(mesh, mesh.nodes, RowMatX3d::Zero(mesh.num_nodes(), 3)) {}
-
-QuadraticCuttableMesh::QuadraticCuttableMesh(const mechanics::HighOrderTetMesh& mesh,
-                                             const RowMatX3d& positions,
-                                             const RowMatX3d& velocities)
-    : skeleton_(Skeleton(mesh, positions, velocities)) {
+QuadraticControlNet::QuadraticControlNet(const mechanics::HighOrderTetMesh& mesh,
+                                         const RowMatX3d& positions, const RowMatX3d& velocities) {
+  const TetMesh corners = CornerMesh(mesh);
+  ARREG_CHECK_INPUT(positions.rows() == mesh.num_nodes(), "", "positions", "expected ",
+                    mesh.num_nodes(), " rows, got ", positions.rows());
+  ARREG_CHECK_INPUT(velocities.rows() == mesh.num_nodes(), "", "velocities", "expected ",
+                    mesh.num_nodes(), " rows, got ", velocities.rows());
   const int nv = mesh.num_vertices;
   const std::vector<ControlSlot>& slots = QuadraticSlots();
-  const std::vector<Tet>& tets = skeleton_.tetrahedra();
+  tets_.resize(mesh.num_elements());
+  for (int t = 0; t < mesh.num_elements(); ++t)
+    for (int i = 0; i < 4; ++i) {
+      tets_[t][i] = corners.tetrahedra(t, i);
+      ARREG_CHECK_INPUT(tets_[t][i] >= 0 && tets_[t][i] < nv, "", "elements", "element ", t,
+                        " has corner ", tets_[t][i], " outside the ", nv, " vertices");
+    }
   corners_.resize(nv);
-  for (int v = 0; v < nv; ++v)
+  reference_.resize(nv);
+  for (int v = 0; v < nv; ++v) {
     corners_[v] = {mesh.nodes.row(v).transpose(), positions.row(v).transpose(),
                    velocities.row(v).transpose()};
+    reference_[v] = corners_[v].rest;
+  }
   // Edge control points in the order of their node indices, so that RestMesh() gives the
   // input's numbering back before any cut.
   std::vector<std::pair<int, std::uint64_t>> node_edges;
@@ -89,7 +92,7 @@ QuadraticCuttableMesh::QuadraticCuttableMesh(const mechanics::HighOrderTetMesh& 
   for (int t = 0; t < mesh.num_elements(); ++t)
     for (size_t k = 0; k < slots.size(); ++k) {
       if (slots[k].j < 0) continue;
-      const int a = tets[t][slots[k].i], b = tets[t][slots[k].j];
+      const int a = tets_[t][slots[k].i], b = tets_[t][slots[k].j];
       const int node = mesh.elements(t, k);
       ARREG_CHECK_INPUT(node >= nv && node < mesh.num_nodes(), "", "elements", "element ", t,
                         " has edge control point ", node, " outside the edge nodes");
@@ -113,7 +116,18 @@ QuadraticCuttableMesh::QuadraticCuttableMesh(const mechanics::HighOrderTetMesh& 
   }
 }
 
-int QuadraticCuttableMesh::EdgeNodeIndex(int a, int b) const {
+QuadraticCuttableMesh::QuadraticCuttableMesh(const mechanics::HighOrderTetMesh& mesh)
+    : QuadraticCuttableMesh(mesh, mesh.nodes, RowMatX3d::Zero(mesh.num_nodes(), 3)) {}
+
+QuadraticCuttableMesh::QuadraticCuttableMesh(const mechanics::HighOrderTetMesh& mesh,
+                                             const RowMatX3d& positions,
+                                             const RowMatX3d& velocities)
+    : skeleton_(CornerMesh(mesh),
+                positions.topRows(std::min<Eigen::Index>(mesh.num_vertices, positions.rows())),
+                velocities.topRows(std::min<Eigen::Index>(mesh.num_vertices, velocities.rows()))),
+      net_(mesh, positions, velocities) {}
+
+int QuadraticControlNet::EdgeNodeIndex(int a, int b) const {
   const auto it = edge_of_.find(EdgeKey(a, b));
   ARREG_ASSERT(it != edge_of_.end(), "edge (", a, ", ", b, ") has no control point");
   return it->second;
@@ -211,20 +225,34 @@ class OldElements {
 CutSummary QuadraticCuttableMesh::Cut(const CutSurface& surface, const CutOptions& options,
                                       QuadraticCutChange* change) {
   CutOptions opt = options;
-  if (curved_) {
+  if (net_.curved()) {
     opt.min_flip_quality = std::numeric_limits<double>::max();
     opt.snap_epsilon = 0;
     opt.move_front_vertices = false;
   }
-  const std::vector<Tet> old_tets = skeleton_.tetrahedra();
-  const std::vector<Vec3> old_rest = skeleton_.rest_positions();
-  const int nv0 = skeleton_.num_vertices();
-  const int nt0 = skeleton_.num_tetrahedra();
   CutChange cc;
   CutSummary summary = skeleton_.Cut(surface, opt, &cc);
   if (summary.status != CutStatus::kCut) return summary;
+  net_.Follow(skeleton_.tetrahedra(), skeleton_.rest_positions(), cc, change);
+  // The skeleton placed new corners on straight edges: give it the curved positions.
+  const int nv = skeleton_.num_vertices();
+  skeleton_.SetDeformation(net_.Positions().topRows(nv), net_.Velocities().topRows(nv));
+  if (change) change->corners = std::move(cc);
+  return summary;
+}
 
-  const std::vector<Tet>& tets = skeleton_.tetrahedra();
+void QuadraticControlNet::Follow(const std::vector<Tet>& tetrahedra,
+                                 const std::vector<Vec3>& reference, const CutChange& cc,
+                                 QuadraticCutChange* change) {
+  const std::vector<Tet> old_tets = std::move(tets_);
+  const std::vector<Vec3> old_rest = std::move(reference_);
+  tets_ = tetrahedra;
+  reference_ = reference;
+  const int nv0 = static_cast<int>(old_rest.size());
+  const int nt0 = static_cast<int>(old_tets.size());
+  ARREG_ASSERT(cc.num_vertices_before == nv0 && cc.num_tetrahedra_before == nt0,
+               "the control net does not follow this corner mesh");
+  const std::vector<Tet>& tets = tets_;
   std::unordered_set<int> snapped;
   for (const SnappedVertex& s : cc.snapped) snapped.insert(s.index);
   const auto moved = [&](const Tet& t) {
@@ -252,7 +280,7 @@ CutSummary QuadraticCuttableMesh::Cut(const CutSurface& surface, const CutOption
   const OldElements old(std::move(removed), old_rest, std::move(maps));
 
   // Every vertex's ancestors: the old vertices it was made from.
-  const int nv = skeleton_.num_vertices();
+  const int nv = static_cast<int>(reference_.size());
   std::vector<std::vector<int>> ancestors(nv);
   for (int v = 0; v < nv0; ++v) ancestors[v] = {v};
   for (const NewVertex& n : cc.new_vertices)
@@ -265,7 +293,7 @@ CutSummary QuadraticCuttableMesh::Cut(const CutSurface& surface, const CutOption
     a.erase(std::unique(a.begin(), a.end()), a.end());
   }
 
-  const std::vector<Vec3>& rest = skeleton_.rest_positions();
+  const std::vector<Vec3>& rest = reference_;
   const auto evaluate = [&](const Vec3& y, const std::vector<int>& near,
                             const std::vector<int>& from) {
     const auto [e, l] = old.Locate(y, near, from);
@@ -322,31 +350,20 @@ CutSummary QuadraticCuttableMesh::Cut(const CutSurface& surface, const CutOption
   edges_ = std::move(edges);
   edge_of_ = std::move(edge_of);
 
-  // The skeleton placed new corners on straight edges: give it the curved positions.
-  RowMatX3d x(nv, 3), v(nv, 3);
-  for (int i = 0; i < nv; ++i) {
-    x.row(i) = corners_[i].current.transpose();
-    v.row(i) = corners_[i].velocity.transpose();
-  }
-  skeleton_.SetDeformation(x, v);
-
   if (change) {
-    change->corners = std::move(cc);
     change->node_from_old = std::move(node_from_old);
     change->num_new_edge_nodes = static_cast<int>(edges_.size()) - kept;
     change->num_removed_edge_nodes = num_old_edges - kept;
   }
-  return summary;
 }
 
-void QuadraticCuttableMesh::SetDeformation(const RowMatX3d& positions,
-                                           const RowMatX3d& velocities) {
+void QuadraticControlNet::SetDeformation(const RowMatX3d& positions, const RowMatX3d& velocities) {
   ARREG_CHECK_INPUT(positions.rows() == num_nodes() && velocities.rows() == num_nodes(), "",
                     "positions", "expected ", num_nodes(), " rows, got ", positions.rows(), " and ",
                     velocities.rows());
   ARREG_CHECK_INPUT(positions.allFinite() && velocities.allFinite(), "", "positions",
                     "non-finite position or velocity");
-  const int nv = skeleton_.num_vertices();
+  const int nv = num_corners();
   for (int i = 0; i < nv; ++i) {
     corners_[i].current = positions.row(i).transpose();
     corners_[i].velocity = velocities.row(i).transpose();
@@ -355,22 +372,28 @@ void QuadraticCuttableMesh::SetDeformation(const RowMatX3d& positions,
     edges_[k].data.current = positions.row(nv + k).transpose();
     edges_[k].data.velocity = velocities.row(nv + k).transpose();
   }
+}
+
+void QuadraticCuttableMesh::SetDeformation(const RowMatX3d& positions,
+                                           const RowMatX3d& velocities) {
+  net_.SetDeformation(positions, velocities);
+  const int nv = skeleton_.num_vertices();
   skeleton_.SetDeformation(positions.topRows(nv), velocities.topRows(nv));
 }
 
-mechanics::HighOrderTetMesh QuadraticCuttableMesh::RestMesh() const {
+mechanics::HighOrderTetMesh QuadraticControlNet::RestMesh() const {
   mechanics::HighOrderTetMesh out;
   out.degree = 2;
-  const int nv = skeleton_.num_vertices();
+  const int nv = num_corners();
   out.num_vertices = nv;
   out.nodes.resize(num_nodes(), 3);
   for (int i = 0; i < nv; ++i) out.nodes.row(i) = corners_[i].rest.transpose();
   for (size_t k = 0; k < edges_.size(); ++k)
     out.nodes.row(nv + k) = edges_[k].data.rest.transpose();
   const std::vector<ControlSlot>& slots = QuadraticSlots();
-  const std::vector<Tet>& tets = skeleton_.tetrahedra();
-  out.elements.resize(num_tetrahedra(), static_cast<int>(slots.size()));
-  for (int t = 0; t < num_tetrahedra(); ++t)
+  const std::vector<Tet>& tets = tets_;
+  out.elements.resize(static_cast<int>(tets_.size()), static_cast<int>(slots.size()));
+  for (int t = 0; t < static_cast<int>(tets_.size()); ++t)
     for (size_t k = 0; k < slots.size(); ++k)
       out.elements(t, k) = slots[k].j < 0
                                ? tets[t][slots[k].i]
@@ -378,21 +401,17 @@ mechanics::HighOrderTetMesh QuadraticCuttableMesh::RestMesh() const {
   return out;
 }
 
-RowMatX3d QuadraticCuttableMesh::Positions() const {
-  const int nv = skeleton_.num_vertices();
+RowMatX3d QuadraticControlNet::Gather(Eigen::Vector3d NodeData::*field) const {
+  const int nv = num_corners();
   RowMatX3d x(num_nodes(), 3);
-  for (int i = 0; i < nv; ++i) x.row(i) = corners_[i].current.transpose();
-  for (size_t k = 0; k < edges_.size(); ++k) x.row(nv + k) = edges_[k].data.current.transpose();
+  for (int i = 0; i < nv; ++i) x.row(i) = (corners_[i].*field).transpose();
+  for (size_t k = 0; k < edges_.size(); ++k) x.row(nv + k) = (edges_[k].data.*field).transpose();
   return x;
 }
 
-RowMatX3d QuadraticCuttableMesh::Velocities() const {
-  const int nv = skeleton_.num_vertices();
-  RowMatX3d x(num_nodes(), 3);
-  for (int i = 0; i < nv; ++i) x.row(i) = corners_[i].velocity.transpose();
-  for (size_t k = 0; k < edges_.size(); ++k) x.row(nv + k) = edges_[k].data.velocity.transpose();
-  return x;
-}
+RowMatX3d QuadraticControlNet::Positions() const { return Gather(&NodeData::current); }
+
+RowMatX3d QuadraticControlNet::Velocities() const { return Gather(&NodeData::velocity); }
 
 QuadraticMeshInvariants CheckQuadraticMesh(const mechanics::HighOrderTetMesh& mesh) {
   ARREG_CHECK_INPUT(mesh.degree == 2, "", "degree", "expected degree 2, got ", mesh.degree);

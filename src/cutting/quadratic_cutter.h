@@ -26,6 +26,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <unordered_map>
 #include <vector>
@@ -47,11 +48,62 @@ struct QuadraticCutChange {
   int num_removed_edge_nodes = 0;
 };
 
+// The control points of a degree-2 mesh over its corner mesh, following the corner mesh's cuts:
+// the placement described above, for whoever cuts the corners (QuadraticCuttableMesh below, or the
+// pipeline's cut handler, which keeps its own CuttableMesh of the corners).
+class QuadraticControlNet {
+ public:
+  // `mesh` of degree 2 with its current positions and velocities (#N x 3, the mesh's node
+  // order). Throws arreg::Error naming "degree" for another degree, "positions"/"velocities" on
+  // a row mismatch and "elements" for an element table that does not share edge points.
+  QuadraticControlNet(const mechanics::HighOrderTetMesh& mesh, const RowMatX3d& positions,
+                      const RowMatX3d& velocities);
+
+  // After the corner mesh took `change`: `tetrahedra` and `reference` are its elements and rest
+  // positions now (the corner mesh's rest positions before the event are the reference space of
+  // the old elements; the net kept them from the last call).
+  void Follow(const std::vector<std::array<int, 4>>& tetrahedra,
+              const std::vector<Eigen::Vector3d>& reference, const CutChange& change,
+              QuadraticCutChange* out = nullptr);
+
+  // Current positions and velocities of every node (#N x 3, the order of RestMesh()). Throws
+  // arreg::Error on a row mismatch or non-finite values.
+  void SetDeformation(const RowMatX3d& positions, const RowMatX3d& velocities);
+
+  // Corners first (the corner mesh's vertices), then one control point per edge.
+  mechanics::HighOrderTetMesh RestMesh() const;
+  RowMatX3d Positions() const;
+  RowMatX3d Velocities() const;
+  int num_corners() const { return static_cast<int>(corners_.size()); }
+  int num_nodes() const { return num_corners() + static_cast<int>(edges_.size()); }
+  // Some rest element is not affine (its edge control points off the straight midpoints).
+  bool curved() const { return curved_; }
+
+ private:
+  struct NodeData {
+    Eigen::Vector3d rest, current, velocity;
+  };
+  struct EdgeNode {
+    int a = -1, b = -1;  // corner vertices
+    NodeData data;
+  };
+  int EdgeNodeIndex(int a, int b) const;
+  RowMatX3d Gather(Eigen::Vector3d NodeData::*field) const;  // #N x 3, RestMesh() order
+
+  std::vector<std::array<int, 4>> tets_;    // the corner mesh's elements
+  std::vector<Eigen::Vector3d> reference_;  // the corner mesh's rest positions
+  std::vector<NodeData> corners_;
+  std::vector<EdgeNode> edges_;
+  std::unordered_map<std::uint64_t, int> edge_of_;  // edge key (sorted corners) -> edges_ index
+  bool curved_ = false;
+};
+
+// A degree-2 mesh that can be cut repeatedly: a CuttableMesh of the corners (the skeleton) and
+// the control net that follows it.
 class QuadraticCuttableMesh {
  public:
   // `mesh` of degree 2 (rest control points; current = rest, zero velocities unless given, #N x 3
-  // in the mesh's node order). Throws arreg::Error naming "degree" for another degree, as
-  // CuttableMesh for a bad corner mesh, and naming "positions"/"velocities" on a row mismatch.
+  // in the mesh's node order). Throws arreg::Error as QuadraticControlNet and CuttableMesh.
   explicit QuadraticCuttableMesh(const mechanics::HighOrderTetMesh& mesh);
   QuadraticCuttableMesh(const mechanics::HighOrderTetMesh& mesh, const RowMatX3d& positions,
                         const RowMatX3d& velocities);
@@ -66,34 +118,19 @@ class QuadraticCuttableMesh {
   // arreg::Error on a row mismatch or non-finite values.
   void SetDeformation(const RowMatX3d& positions, const RowMatX3d& velocities);
 
-  // The rest mesh of degree 2: corners first (the skeleton's vertices), then one control point
-  // per edge.
-  mechanics::HighOrderTetMesh RestMesh() const;
-  RowMatX3d Positions() const;   // current node positions, RestMesh() order
-  RowMatX3d Velocities() const;  // node velocities, RestMesh() order
-  int num_nodes() const { return skeleton_.num_vertices() + static_cast<int>(edges_.size()); }
+  mechanics::HighOrderTetMesh RestMesh() const { return net_.RestMesh(); }
+  RowMatX3d Positions() const { return net_.Positions(); }
+  RowMatX3d Velocities() const { return net_.Velocities(); }
+  int num_nodes() const { return net_.num_nodes(); }
   int num_tetrahedra() const { return skeleton_.num_tetrahedra(); }
   // The corner mesh the linear remesher cuts (rest = the reference space; current = the corners'
   // current positions).
   const CuttableMesh& skeleton() const { return skeleton_; }
-  // Some rest element is not affine (its edge control points off the straight midpoints).
-  bool curved() const { return curved_; }
+  bool curved() const { return net_.curved(); }
 
  private:
-  struct NodeData {
-    Eigen::Vector3d rest, current, velocity;
-  };
-  struct EdgeNode {
-    int a = -1, b = -1;  // corner vertices
-    NodeData data;
-  };
-  int EdgeNodeIndex(int a, int b) const;
-
   CuttableMesh skeleton_;
-  std::vector<NodeData> corners_;
-  std::vector<EdgeNode> edges_;
-  std::unordered_map<std::uint64_t, int> edge_of_;  // edge key (sorted corners) -> edges_ index
-  bool curved_ = false;
+  QuadraticControlNet net_;
 };
 
 // Checks of a quadratic mesh the remesher must keep: the corner mesh's (CheckMeshInvariants),

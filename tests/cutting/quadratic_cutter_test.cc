@@ -125,8 +125,9 @@ TEST(QuadraticCutter, PlaneSeparatesAStraightBeam) {
   for (const SnappedVertex& v : change.corners.snapped) snapped[v.index] = true;
   EXPECT_GT(change.corners.snapped.size(), 0u);
   for (size_t n = 0; n < change.node_from_old.size(); ++n)
-    if (change.node_from_old[n] >= 0 && !snapped[n])
+    if (change.node_from_old[n] >= 0 && !snapped[n]) {
       EXPECT_EQ(after.nodes.row(change.node_from_old[n]), beam.nodes.row(n)) << n;
+    }
   EXPECT_EQ(static_cast<int>(change.node_from_old.size()), beam.num_nodes());
   EXPECT_EQ(
       after.num_nodes(),
@@ -210,7 +211,9 @@ TEST(QuadraticCutter, RandomCutSequencesKeepTheInvariants) {
       SCOPED_TRACE("sequence " + std::to_string(sequence) + " cut " + std::to_string(i) + " (" +
                    RandomCutKindName(rc.kind) + ")");
       ExpectValid(cut, volume);
-      if (!curved) EXPECT_LT(FieldError(cut.RestMesh(), cut.Positions(), Bend), 1e-8);
+      if (!curved) {
+        EXPECT_LT(FieldError(cut.RestMesh(), cut.Positions(), Bend), 1e-8);
+      }
       if (HasFailure()) return;
     }
   }

@@ -185,24 +185,33 @@ TEST(RandomCuts, SweepOfAHundredAndFiftyCutsKeepsEveryCheck) {
   EXPECT_EQ(static_cast<int>(kinds.size()), kNumRandomCutKinds);
 }
 
+// Draws `n` random cuts (seed `seed`) on `mesh` in turn, each made; returns how many crossed it.
+template <class Mesh, class Corners>
+int DrawAndCut(int seed, int n, Mesh* mesh, Corners corners, std::vector<RandomCut>* cuts) {
+  RandomCutGenerator generator(seed);
+  int made = 0;
+  for (int i = 0; i < n; ++i) {
+    RandomCut cut = generator.Next(corners(*mesh));
+    const CutSummary s = mesh->Cut(cut.surface, cut.options);
+    made += s.status == CutStatus::kCut;
+    generator.Record(cut, s.status);
+    cuts->push_back(std::move(cut));
+  }
+  return made;
+}
+
 // A saved case replays: the cuts of a sequence written by SaveCase, run again from initial.vtk,
 // pass every check (the files hold the surfaces to the bit). A case with a missing file is an
 // error naming it.
 TEST(RandomCuts, SavedCaseReplays) {
   const std::string dir = testing::ScratchDir("random_cuts_replay");
   SweepMesh mesh{"beam", Beam(), {}, {}};
-  RandomCutGenerator generator(3);
   CuttableMesh cutter(mesh.mesh);
   std::vector<RandomCut> cuts;
-  int made = 0;
-  for (int i = 0; i < 6; ++i) {
-    RandomCut cut = generator.Next(cutter);
-    const CutSummary s = cutter.Cut(cut.surface, cut.options);
-    made += s.status == CutStatus::kCut;
-    generator.Record(cut, s.status);
-    cuts.push_back(std::move(cut));
-  }
-  ASSERT_GT(made, 2);
+  ASSERT_GT(
+      DrawAndCut(
+          3, 6, &cutter, [](const CuttableMesh& m) -> const CuttableMesh& { return m; }, &cuts),
+      2);
   Violation v;
   v.mesh = "beam";
   v.index = 5;
@@ -228,17 +237,12 @@ TEST(RandomCuts, SavedQuadraticCaseReplays) {
   mechanics::HighOrderTetMesh raised = mechanics::RaiseTetMesh(mesh.mesh, 2);
   raised.nodes = mesh.quadratic_nodes;
   QuadraticCuttableMesh cutter(raised);
-  RandomCutGenerator generator(5);
   std::vector<RandomCut> cuts;
-  int made = 0;
-  for (int i = 0; i < 5; ++i) {
-    RandomCut cut = generator.Next(cutter.skeleton());
-    const CutSummary s = cutter.Cut(cut.surface, cut.options);
-    made += s.status == CutStatus::kCut;
-    generator.Record(cut, s.status);
-    cuts.push_back(std::move(cut));
-  }
-  ASSERT_GT(made, 1);
+  ASSERT_GT(DrawAndCut(
+                5, 5, &cutter,
+                [](const QuadraticCuttableMesh& m) -> const CuttableMesh& { return m.skeleton(); },
+                &cuts),
+            1);
   Violation v;
   v.mesh = mesh.name;
   SaveCase(dir + "/case", mesh, cuts, v, 2);

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "ar/lift/lifting.h"
+#include "ar/pipeline/thin_model.h"
 #include "core/error.h"
 #include "core/log.h"
 #include "core/mesh_ops.h"
@@ -336,6 +337,8 @@ CutEvent CutHandler::Apply(int frame, const std::vector<Eigen::Vector3d>& polyli
         *mesh_ = before;
         throw;
       }
+      if (t.curved)
+        t.curved->FollowCut(plan.change, mesh_->tetrahedra(), mesh_->rest_positions(), &state);
       const TetMesh rest = state.RestMesh();  // after the cut
       FollowCut(plan.change, new_elements, rest, s, in_rest, mesh_->mean_rest_edge_length(),
                 options_, t, &ev);

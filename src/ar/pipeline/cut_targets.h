@@ -15,6 +15,8 @@
 
 namespace arreg::pipeline {
 
+class BernsteinTetTerms;  // thin_model.h
+
 // Owned by the pipeline, valid during CutHandler::Apply.
 struct CutTargets {
   mechanics::MechanicalState* state = nullptr;
@@ -22,6 +24,8 @@ struct CutTargets {
   // Rows read and written: views, rest_mm (in the rest frame of `state`), embedding.
   FeatureRows* features = nullptr;
   EmbeddedStructures* internal = nullptr;
+  // A degree-2 organ: its control net follows every cut of the corner mesh (null at degree 1).
+  BernsteinTetTerms* curved = nullptr;
 };
 
 // After the state took `change` (`new_elements` as ApplyCutChange returns them; `rest` the

@@ -305,12 +305,13 @@ FrameLoop::FrameLoop(const Scene& scene, const PipelineOptions& options, const L
   internal_.original = &model.internal;
   for (const SurfaceMesh& m : internal_.surfaces) {
     internal_.rest_mm.push_back(m.vertices);
+    // A curved organ's structures follow the curved map; the linear embedding is what a cut
+    // updates (CutTargets), and the curved one is taken from it after the cut.
     if (mech_.curved)
       internal_curved_.push_back(mechanics::HighOrderEmbedding::Embed(
           mech_.curved->mesh(), mech_.curved->mesh().nodes, m.vertices));
-    else
-      internal_.embedding.push_back(mechanics::EmbeddedPoints::Embed(
-          m.vertices, mech_.state.rest_positions(), mech_.state.tetrahedra()));
+    internal_.embedding.push_back(mechanics::EmbeddedPoints::Embed(
+        m.vertices, mech_.state.rest_positions(), mech_.state.tetrahedra()));
   }
 }
 
@@ -625,9 +626,9 @@ void FrameLoop::ApplyCut(FrameWork* w) {
   ev.status = CutEventStatus::kNoCrossing;
   ev.polyline_points = static_cast<int>(detection_.extended_polyline_mm.size());
   if (cut_handler_)
-    ev = cut_handler_->Apply(w->frame, detection_.extended_polyline_mm, rest_polyline,
-                             camera_.CenterInWorld(),
-                             CutTargets{&mech_.state, &mech_.springs, &rows_, &internal_}, &s);
+    ev = cut_handler_->Apply(
+        w->frame, detection_.extended_polyline_mm, rest_polyline, camera_.CenterInWorld(),
+        CutTargets{&mech_.state, &mech_.springs, &rows_, &internal_, mech_.curved}, &s);
   if (mech_.thin && ev.status != CutEventStatus::kFailed) {
     // The shells along the rest polyline, seen from the camera; the vessels by the plane of the
     // current polyline and the viewing direction.
@@ -649,6 +650,7 @@ void FrameLoop::ApplyCut(FrameWork* w) {
   }
   if (ev.status == CutEventStatus::kCut) {
     if (mech_.has_tets()) surface_ = ExtractBoundary(mech_.state.CurrentMesh());
+    if (mech_.curved) FollowCurvedCut();
     mech_.UpdateAnchors(&rows_);
     ++summary_.cuts_applied;
   }
@@ -656,6 +658,26 @@ void FrameLoop::ApplyCut(FrameWork* w) {
     cut_surface_ = std::move(s);
   events_.push_back(ev);
   ++summary_.cut_events;
+}
+
+// A degree-2 organ after a cut: its boundary tessellated again, its internal structures placed
+// on the curved elements at their linear embedding's elements and coordinates (the cut mesh's
+// elements are the state's; a structure split along the crack stays on its side).
+void FrameLoop::FollowCurvedCut() {
+  const mechanics::HighOrderTetMesh& mesh = mech_.curved->mesh();
+  mech_.curved_boundary = mechanics::TessellateBoundary(mesh, mesh.nodes, kCurvedSubdivisions);
+  mech_.curved_surface = mech_.curved_boundary->surface;
+  for (size_t k = 0; k < internal_.surfaces.size(); ++k) {
+    const mechanics::EmbeddedPoints& e = internal_.embedding[k];
+    std::vector<int> elements(e.size());
+    std::vector<Eigen::Vector4d> coordinates(e.size());
+    for (int i = 0; i < e.size(); ++i) {
+      elements[i] = e[i].tet;
+      coordinates[i] = e[i].barycentric;
+    }
+    internal_curved_[k] = mechanics::HighOrderEmbedding::FromCoordinates(mesh, std::move(elements),
+                                                                         std::move(coordinates));
+  }
 }
 
 // The output configuration (docs/springs.md, "Output fit"), the embedded structures, the

@@ -70,6 +70,7 @@ class FrameLoop {
   void StepMechanics(FrameWork* w);
   void DetectAndCut(FrameWork* w);
   void ApplyCut(FrameWork* w);
+  void FollowCurvedCut();
   void Output(FrameWork* w);
   void Render(FrameWork* w);
   FrameState Describe(const FrameWork& w, bool is_last) const;

@@ -99,12 +99,13 @@ RegistrationPipeline::RegistrationPipeline(const Scene& scene, const PipelineOpt
   for (int v : options.mechanics.fixed_vertices)
     ARREG_CHECK_INPUT(v < impl_->model.mesh.vertices.rows(), scene.path, "mechanics.fixed_vertices",
                       "index ", v, " >= vertex count ", impl_->model.mesh.vertices.rows());
-  // Degree 2 and 3 (docs/higher-order.md, "In the registration"): no quadratic cutting, so
-  // the run must not change topology; the thin structures' ties embed in linear tetrahedra.
+  // Degree 2 and 3 (docs/higher-order.md, "In the registration"): degree 2 is cut by the
+  // quadratic remesher, degree 3 not at all; the thin structures' ties embed in linear
+  // tetrahedra.
   if (scene.model_degree > 1) {
-    ARREG_CHECK_INPUT(!options.cutting.enabled, scene.path, "model.degree", "degree ",
-                      scene.model_degree,
-                      " elements cannot be cut (there is no quadratic cutting): run with "
+    ARREG_CHECK_INPUT(scene.model_degree == 2 || !options.cutting.enabled, scene.path,
+                      "model.degree", "degree ", scene.model_degree,
+                      " elements cannot be cut (quadratic cutting is degree 2): run with "
                       "--no-topology");
     ARREG_CHECK_INPUT(impl_->model.thin.empty(), scene.path, "model.degree", "degree ",
                       scene.model_degree, " is not available with thin_structures");

@@ -246,6 +246,7 @@ BernsteinTetTerms::BernsteinTetTerms(mechanics::HighOrderTetMesh mesh,
 
 bool BernsteinTetTerms::Sync(const mechanics::MechanicalState& body, GeneralisedState* state) {
   bool changed = false;
+  state_ = state;
   if (!elastic_) {
     ARREG_CHECK_INPUT(
         body.num_vertices() == mesh_.num_vertices && body.num_tetrahedra() == mesh_.num_elements(),
@@ -254,25 +255,19 @@ bool BernsteinTetTerms::Sync(const mechanics::MechanicalState& body, Generalised
         body.num_tetrahedra());
     node_ = mechanics::AddHighOrderNodes(mesh_, state);
     vertex_node_.assign(node_.begin(), node_.begin() + mesh_.num_vertices);
+    rebuild_ = true;
+  }
+  if (rebuild_) {
     elastic_ = std::make_unique<mechanics::BernsteinTetTerm>(&mesh_, node_, options_);
     num_vertices_ = body.num_vertices();
     body_topology_ = body.topology_version();
-    // A control point is fixed when every corner spanning it is (an edge between two
-    // fixed vertices stays put); the corners follow the body's flags below.
-    const std::vector<std::array<int, 4>> indices = mechanics::BernsteinIndices(mesh_.degree);
-    std::vector<char> free(mesh_.num_nodes(), 0);
-    for (int e = 0; e < mesh_.num_elements(); ++e)
-      for (size_t a = 0; a < indices.size(); ++a)
-        for (int i = 0; i < 4; ++i)
-          if (indices[a][i] > 0 && !body.is_fixed(mesh_.elements(e, i)))
-            free[mesh_.elements(e, a)] = 1;
-    for (int n = mesh_.num_vertices; n < mesh_.num_nodes(); ++n)
-      state->SetFixedTranslation(node_[n], !free[n]);
+    FixControlPoints(body, state);
+    rebuild_ = false;
     changed = true;
   }
   ARREG_CHECK_INPUT(
       body.num_vertices() == num_vertices_ && body.topology_version() == body_topology_, "",
-      "model.degree", "the organ's topology changed, and degree 2 and 3 elements cannot be cut");
+      "model.degree", "the organ's topology changed, and degree 3 elements cannot be cut");
   if (static_cast<int>(spring_nodes_.size()) < springs_->size()) {
     EmbedNewSprings(body);
     changed = true;
@@ -281,8 +276,95 @@ bool BernsteinTetTerms::Sync(const mechanics::MechanicalState& body, Generalised
   return changed;
 }
 
+void BernsteinTetTerms::FixControlPoints(const mechanics::MechanicalState& body,
+                                         GeneralisedState* state) {
+  // A control point is fixed when every corner spanning it is (an edge between two fixed
+  // vertices stays put); the corners follow the body's flags (CopyBodyToNodes).
+  const std::vector<std::array<int, 4>> indices = mechanics::BernsteinIndices(mesh_.degree);
+  std::vector<char> free(mesh_.num_nodes(), 0);
+  for (int e = 0; e < mesh_.num_elements(); ++e)
+    for (size_t a = 0; a < indices.size(); ++a)
+      for (int i = 0; i < 4; ++i)
+        if (indices[a][i] > 0 && !body.is_fixed(mesh_.elements(e, i)))
+          free[mesh_.elements(e, a)] = 1;
+  for (int n = mesh_.num_vertices; n < mesh_.num_nodes(); ++n)
+    state->SetFixedTranslation(node_[n], !free[n]);
+}
+
+void BernsteinTetTerms::FollowCut(const cutting::CutChange& change,
+                                  const std::vector<std::array<int, 4>>& tetrahedra,
+                                  const std::vector<Eigen::Vector3d>& reference,
+                                  mechanics::MechanicalState* body) {
+  ARREG_CHECK_INPUT(mesh_.degree == 2, "", "model.degree",
+                    "the organ's topology changed, and degree 3 elements cannot be cut");
+  ARREG_ASSERT(state_ != nullptr && elastic_, "FollowCut before the first Sync");
+  // The configuration before the event: the state's (the body took the event already).
+  RowMatX3d x(mesh_.num_nodes(), 3), v(mesh_.num_nodes(), 3);
+  for (int n = 0; n < mesh_.num_nodes(); ++n) {
+    x.row(n) = state_->positions().row(node_[n]);
+    v.row(n) = state_->velocities().row(node_[n]);
+  }
+  if (!net_)
+    net_.emplace(mesh_, x, v);
+  else
+    net_->SetDeformation(x, v);
+  cutting::QuadraticCutChange q;
+  net_->Follow(tetrahedra, reference, change, &q);
+  const mechanics::HighOrderTetMesh mesh = net_->RestMesh();
+  const RowMatX3d positions = net_->Positions(), velocities = net_->Velocities();
+  std::vector<int> node(mesh.num_nodes(), -1);
+  std::vector<char> kept(node_.size(), 0);
+  for (size_t n = 0; n < q.node_from_old.size(); ++n)
+    if (q.node_from_old[n] >= 0) {
+      node[q.node_from_old[n]] = node_[n];
+      kept[n] = 1;
+    }
+  for (int n = 0; n < mesh.num_nodes(); ++n) {
+    if (node[n] < 0) node[n] = state_->AddPointNode(mesh.nodes.row(n).transpose());
+    state_->mutable_positions().row(node[n]) = positions.row(n);
+    state_->mutable_velocities().row(node[n]) = velocities.row(n);
+  }
+  // Control points of removed edges stay in the state, fixed: no term sees them.
+  for (size_t n = 0; n < node_.size(); ++n)
+    if (!kept[n]) {
+      state_->SetFixedTranslation(node_[n], true);
+      state_->mutable_velocities().row(node_[n]).setZero();
+    }
+  for (int c = mesh_.num_vertices; c < mesh.num_vertices; ++c) {
+    body->mutable_positions().row(c) = positions.row(c);
+    body->mutable_velocities().row(c) = velocities.row(c);
+  }
+  mesh_ = mesh;
+  node_ = std::move(node);
+  vertex_node_.assign(node_.begin(), node_.begin() + mesh_.num_vertices);
+  spring_nodes_.clear();
+  spring_weights_.clear();
+  rebuild_ = true;
+  ++cuts_followed_;
+}
+
 void BernsteinTetTerms::EmbedNewSprings(const mechanics::MechanicalState& body) {
   const int first = static_cast<int>(spring_nodes_.size());
+  if (cuts_followed_ > 0) {
+    // After a cut the element and coordinates of the body's anchor are the curved element's
+    // (the cut mesh's elements are the body's, numbered alike, and the corner mesh's rest
+    // positions are their reference space): no inverse map, and no doubt about the side of a
+    // crack a spring is on.
+    for (int id = first; id < springs_->size(); ++id) {
+      const mechanics::EmbeddedPoint& a = springs_->spring(id).anchor;
+      if (a.tet < 0) {  // not embedded (a removed spring): no nodes
+        spring_nodes_.emplace_back();
+        spring_weights_.emplace_back();
+        continue;
+      }
+      const Eigen::VectorXd w = mechanics::BernsteinValues(mesh_.degree, a.barycentric);
+      std::vector<int> nodes(w.size());
+      for (int k = 0; k < w.size(); ++k) nodes[k] = node_[mesh_.elements(a.tet, k)];
+      spring_nodes_.push_back(std::move(nodes));
+      spring_weights_.emplace_back(w.data(), w.data() + w.size());
+    }
+    return;
+  }
   RowMatX3d rest(springs_->size() - first, 3);
   for (int id = first; id < springs_->size(); ++id) {
     const mechanics::EmbeddedPoint& a = springs_->spring(id).anchor;
@@ -397,7 +479,7 @@ void ShellPointSpringTerm::PointAndJacobian(const GeneralisedState& state, const
   *p = control.transpose() * w;
   if (jacobian) {
     jacobian->setZero();
-    for (int i = 0; i < 10; ++i) *jacobian += w[i] * jac.middleRows<3>(3 * i);
+    for (int i = 0; i < 10; ++i) *jacobian += w[i] * jac.middleRows<3>(Eigen::Index{3} * i);
   }
 }
 
@@ -457,7 +539,8 @@ void ShellPointSpringTerm::AddGradient(const GeneralisedState& state,
     const Eigen::Matrix<double, 18, 1> g =
         s.stiffness_n_per_m * cached_jacobian_[i].transpose() * (cached_point_[i] - s.target);
     const Eigen::Vector3i& t = s.shell->triangle(s.point.element);
-    for (int a = 0; a < 3; ++a) gradient->segment<6>(state.dof_offset(t[a])) += g.segment<6>(6 * a);
+    for (int a = 0; a < 3; ++a)
+      gradient->segment<6>(state.dof_offset(t[a])) += g.segment<6>(Eigen::Index{6} * a);
   }
 }
 
@@ -471,7 +554,8 @@ void ShellPointSpringTerm::AddHessian(const GeneralisedState& state, double scal
     const Eigen::Matrix<double, 18, 18> h = s.stiffness_n_per_m * j.transpose() * j;
     const Eigen::Vector3i& t = s.shell->triangle(s.point.element);
     for (int a = 0; a < 3; ++a)
-      for (int b = a; b < 3; ++b) sink->AddBlock(t[a], t[b], h.block<6, 6>(6 * a, 6 * b), scale);
+      for (int b = a; b < 3; ++b)
+        sink->AddBlock(t[a], t[b], h.block<6, 6>(Eigen::Index{6} * a, Eigen::Index{6} * b), scale);
   }
 }
 
@@ -858,7 +942,7 @@ mechanics::GeneralisedSummary ThinSystem::Step(mechanics::MechanicalState* body)
     dirty_ = true;
   }
   if (dirty_) CollectTerms();
-  const mechanics::GeneralisedSummary summary =
+  mechanics::GeneralisedSummary summary =
       integrator_.Step(&state_, elastic_terms_, other_terms_, inertia_);
   solid_->CopyBack(state_, body);
   return summary;
@@ -897,7 +981,8 @@ ThinCutEvent ThinSystem::Cut(const std::vector<Eigen::Vector3d>& polyline_rest,
   if (polyline_current.size() >= 2 && !vessels_.empty()) {
     // The cut surface near the vessels: the plane through the polyline's chord that contains
     // the viewing direction, limited to the polyline's extent.
-    const Eigen::Vector3d a = polyline_current.front(), b = polyline_current.back();
+    const Eigen::Vector3d& a = polyline_current.front();
+    const Eigen::Vector3d& b = polyline_current.back();
     Eigen::Vector3d normal = (b - a).cross(direction);
     if (normal.norm() > 1e-12) {
       mechanics::VesselCutPlane plane;

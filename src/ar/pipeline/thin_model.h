@@ -13,6 +13,8 @@
 
 #include "core/mesh.h"
 #include "core/scene.h"
+#include "cutting/quadratic_cutter.h"
+#include "cutting/tet_cutter.h"
 #include "mechanics/bernstein_tet.h"
 #include "mechanics/bezier_shell.h"
 #include "mechanics/curved_tet.h"
@@ -98,8 +100,9 @@ class LinearTetTerms : public SolidTerms {
 // model.degree) for the organ: every control point of `mesh` is a state node, the first
 // mesh.num_vertices of them the body's vertices (the body mirrors the corner positions,
 // which lie on the curved surface); the body's feature springs anchored by the curved map.
-// The body's topology must not change (quadratic cutting does not exist): Sync throws
-// arreg::Error naming "model.degree" when it did.
+// At degree 2 the body's topology changes only through FollowCut (the quadratic remesher's
+// control net, docs/quadratic-cutting.md); otherwise Sync throws arreg::Error naming
+// "model.degree" when it changed.
 class BernsteinTetTerms : public SolidTerms {
  public:
   // `mesh`: the body's rest mesh raised to the degree (its elements in the body's
@@ -113,6 +116,19 @@ class BernsteinTetTerms : public SolidTerms {
   std::vector<mechanics::GeneralisedEnergyTerm*> others() override;
   std::vector<const mechanics::InertiaSource*> inertia() const override;
   const std::vector<int>& vertex_node() const override { return vertex_node_; }
+
+  // Degree 2: follows a cut of the body's corner mesh. `change` is the event the body took
+  // (ApplyCutChange), `tetrahedra` and `reference` the cutter's elements and rest positions
+  // after it (the reference space of docs/quadratic-cutting.md). New control points go on the
+  // old elements' maps, the state gets nodes for them (those of removed edges are fixed and
+  // left out), the terms are rebuilt at the next Sync, the springs embedded again at their
+  // elements' coordinates, and the body's new corners moved onto the curved elements. Throws
+  // arreg::Error naming "model.degree" at degree 3, and before the first Sync.
+  void FollowCut(const cutting::CutChange& change,
+                 const std::vector<std::array<int, 4>>& tetrahedra,
+                 const std::vector<Eigen::Vector3d>& reference, mechanics::MechanicalState* body);
+  // The number of cuts followed (the curved boundary must be tessellated again after each).
+  int cuts_followed() const { return cuts_followed_; }
 
   const mechanics::HighOrderTetMesh& mesh() const { return mesh_; }
   // Positions of the mesh's control points (#N x 3) in `state`.
@@ -142,6 +158,8 @@ class BernsteinTetTerms : public SolidTerms {
   // mesh at the spring's tetrahedron and barycentric coordinates) located in the curved
   // rest mesh by Newton (HighOrderEmbedding).
   void EmbedNewSprings(const mechanics::MechanicalState& body);
+  // Fixes the edge and face control points whose spanning corners are all fixed in `body`.
+  void FixControlPoints(const mechanics::MechanicalState& body, mechanics::GeneralisedState* state);
 
   mechanics::HighOrderTetMesh mesh_;
   mechanics::BernsteinTetOptions options_;
@@ -151,6 +169,11 @@ class BernsteinTetTerms : public SolidTerms {
   int num_vertices_ = -1;
   std::uint64_t body_topology_ = 0;
   std::unique_ptr<mechanics::BernsteinTetTerm> elastic_;
+  mechanics::GeneralisedState* state_ = nullptr;  // the state Sync was given
+  // Degree 2 after the first cut: the control net following the corner mesh's cuts.
+  std::optional<cutting::QuadraticControlNet> net_;
+  int cuts_followed_ = 0;
+  bool rebuild_ = false;  // FollowCut changed the mesh: the next Sync rebuilds the terms
   Springs springs_term_{this};
   // Per embedded spring: its element's state nodes and Bernstein weights.
   std::vector<std::vector<int>> spring_nodes_;
