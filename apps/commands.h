@@ -10,6 +10,7 @@ int RunBench(int argc, char** argv);
 int RunDebug(int argc, char** argv);
 int RunEval(int argc, char** argv);
 int RunInfo(int argc, char** argv);
+int RunReport(int argc, char** argv);
 int RunRun(int argc, char** argv);
 int RunSynth(int argc, char** argv);
 

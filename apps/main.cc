@@ -25,6 +25,7 @@ constexpr Command kCommands[] = {
     {"debug", arreg::cli::RunDebug, "viewer of a run recorded with --debug; annotated frame PNGs"},
     {"eval", arreg::cli::RunEval, "accuracy against ground truth: Dice, Hausdorff, feature error"},
     {"info", arreg::cli::RunInfo, "describe a mesh file (counts, volume, quality)"},
+    {"report", arreg::cli::RunReport, "one report over many evaluated runs (table, plots, CSV)"},
     {"run", arreg::cli::RunRun, "register a model to a video (overlay, records)"},
     {"synth", arreg::cli::RunSynth,
      "synthetic benchmark scenes with ground truth (video, masks, cut)"},
