@@ -91,7 +91,11 @@ int RunSynth(int argc, char** argv) {
         "cut: opens in frames %d..%d; final opening > 2 mm over %.0f %% of its length "
         "(max %.1f mm)\n",
         s.cut_first_frame, s.cut_last_frame, 100 * s.cut_open_fraction, s.max_cut_opening_mm);
-  return s.unconverged_frames == 0 ? 0 : 1;
+  if (s.unconverged_frames == 0) return 0;
+  std::fprintf(stderr,
+               "arreg synth: error: %s: the truth's Newton solve did not converge in %d frame(s)\n",
+               o.out_dir.c_str(), s.unconverged_frames);
+  return 1;
 }
 
 }  // namespace arreg::cli
