@@ -260,7 +260,8 @@ std::string BuildHtml(const std::vector<AggregateRow>& rows, const fs::path& out
         "table{border-collapse:collapse;margin:8px 0 16px;font-size:13px}\n"
         "th,td{border:1px solid #bbb;padding:3px 6px;text-align:right}\n"
         "th{background:#f0f0f0;cursor:pointer;user-select:none}\n"
-        "td.t{text-align:left}\ntr.failed td{background:#fde4e4}\n"
+        "td.t{text-align:left}\ntd.err{text-align:left;min-width:360px}\n"
+        "tr.failed td{background:#fde4e4}\n"
         "th.asc::after{content:' \\25B2'}\nth.desc::after{content:' \\25BC'}\n"
         "figure.dist{display:inline-block;margin:6px 12px 6px 0;vertical-align:top}\n"
         "figcaption{font-size:13px;font-weight:bold}\n.meta{font-size:13px;color:#555}\n"
@@ -324,7 +325,7 @@ std::string BuildHtml(const std::vector<AggregateRow>& rows, const fs::path& out
          << "</td>";
     }
     os << "<td>" << (r.frames ? std::to_string(*r.frames) : "") << "</td><td>"
-       << (r.cuts_applied ? std::to_string(*r.cuts_applied) : "") << "</td><td class=\"t\">";
+       << (r.cuts_applied ? std::to_string(*r.cuts_applied) : "") << "</td><td class=\"err\">";
     if (r.ok)
       os << "<a href=\"" << link(r) << "\">report</a>";
     else
