@@ -187,5 +187,22 @@ TEST(Workflow, ACorruptSceneIsAFailedRowAndTheOthersComplete) {
   EXPECT_NE(html.find("broken.json: line 1"), std::string::npos);
 }
 
+TEST(Workflow, AManifestErrorIsOneLineNamingTheKey) {
+  if (!HaveSnakemake())
+    GTEST_SKIP() << "snakemake not installed (scripts/install-deps installs it)";
+  const fs::path scratch = ::arreg::testing::ScratchDir("workflow_manifest_error");
+  WriteFileAtomic((scratch / "manifest.yaml").string(), [](std::ostream& os) {
+    os << "variants:\n  topology: {args: []}\nscenes:\n  - {scenario: band-stretch, sed: 1}\n";
+  });
+  const Result r = Batch(scratch, "'" + (scratch / "manifest.yaml").string() + "' --out '" +
+                                      (scratch / "out").string() + "'");
+  EXPECT_EQ(r.status, 1);
+  const std::string line =
+      "workflow: " + (scratch / "manifest.yaml").string() + ": scenes[0].sed: unknown key\n";
+  EXPECT_EQ(r.err.rfind(line, 0), 0u) << r.err;
+  EXPECT_EQ(r.err.find("Traceback"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(scratch / "out" / "scenes"));
+}
+
 }  // namespace
 }  // namespace arreg
