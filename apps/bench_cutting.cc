@@ -300,6 +300,14 @@ int RunRandomSweep(int num_cuts, int seed, int threads, int degree, const std::s
   return r.violations.empty() ? 0 : 1;
 }
 
+// n(v): the elements of `beam` the whole plane crosses (no snapping; the cut is not kept).
+int CrossedByThePlane(const TetMesh& beam) {
+  CuttableMesh probe(beam);
+  CutOptions o;
+  o.snap_epsilon = 0;
+  return probe.Cut(PlaneUpTo(40), o).num_crossed_tetrahedra;
+}
+
 // The thesis' quadratic beam experiment (6.1.4, table 6.4): the plane of the linear experiment
 // through beams of three resolutions raised to degree 2, in one event with separation; control
 // points added per crossed element n(v).
@@ -320,10 +328,7 @@ int RunQuadraticBeams(const std::string& json_path) {
   for (const Beam& b : beams) {
     const TetMesh linear = MakeBoxTetMesh(Eigen::Vector3d(100, 30, 20), b.cells, BoxTetSplit::kSix);
     const mechanics::HighOrderTetMesh beam = mechanics::RaiseTetMesh(linear, 2);
-    CuttableMesh probe(linear);
-    CutOptions p;
-    p.snap_epsilon = 0;
-    const int nv = probe.Cut(PlaneUpTo(40), p).num_crossed_tetrahedra;
+    const int nv = CrossedByThePlane(linear);
     for (RemeshMethod method : {RemeshMethod::kFlips, RemeshMethod::kBielser})
       for (double eps : {0.0, 0.1, 0.2, 0.3}) {
         cutting::QuadraticCuttableMesh mesh(beam);
@@ -406,14 +411,7 @@ int RunBenchCutting(int argc, char** argv) {
 
   const TetMesh beam = MakeBeam();
   cutting::ConditioningOptions cond;
-  int nv_crossed = 0;
-  {
-    // n(v): original elements crossed by the whole plane (no snapping, no remeshing kept).
-    CuttableMesh probe(beam);
-    CutOptions o;
-    o.snap_epsilon = 0;
-    nv_crossed = probe.Cut(PlaneUpTo(40), o).num_crossed_tetrahedra;
-  }
+  const int nv_crossed = CrossedByThePlane(beam);
   std::printf("beam: %d vertices, %d tetrahedra; the plane crosses n(v) = %d of them\n",
               beam.num_vertices(), beam.num_tetrahedra(), nv_crossed);
   std::printf("%-8s %4s | %8s %8s | %8s %8s %10s %12s | %s\n", "method", "eps", "dV/n(v)",

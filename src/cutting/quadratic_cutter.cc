@@ -4,10 +4,12 @@
 #include <algorithm>
 #include <array>
 #include <limits>
+#include <tuple>
 #include <unordered_set>
 #include <utility>
 
 #include "core/error.h"
+#include "cutting/tet_cut_operation.h"
 #include "mechanics/bernstein_nonlinear.h"
 #include "mechanics/curved_tet.h"
 
@@ -18,10 +20,7 @@ namespace {
 using Vec3 = Eigen::Vector3d;
 using Tet = std::array<int, 4>;
 
-std::uint64_t EdgeKey(int a, int b) {
-  if (a > b) std::swap(a, b);
-  return (static_cast<std::uint64_t>(a) << 32) | static_cast<std::uint32_t>(b);
-}
+using cut_internal::EdgeKey;
 
 // The control points of a degree-2 element in BernsteinIndices(2) order: each is a corner
 // (corner = i, other = -1) or the edge between two corners (i < j).
@@ -122,10 +121,9 @@ QuadraticCuttableMesh::QuadraticCuttableMesh(const mechanics::HighOrderTetMesh& 
 QuadraticCuttableMesh::QuadraticCuttableMesh(const mechanics::HighOrderTetMesh& mesh,
                                              const RowMatX3d& positions,
                                              const RowMatX3d& velocities)
-    : skeleton_(CornerMesh(mesh),
-                positions.topRows(std::min<Eigen::Index>(mesh.num_vertices, positions.rows())),
-                velocities.topRows(std::min<Eigen::Index>(mesh.num_vertices, velocities.rows()))),
-      net_(mesh, positions, velocities) {}
+    : net_(mesh, positions, velocities),  // checks the mesh and the row counts first
+      skeleton_(CornerMesh(mesh), positions.topRows(mesh.num_vertices),
+                velocities.topRows(mesh.num_vertices)) {}
 
 int QuadraticControlNet::EdgeNodeIndex(int a, int b) const {
   const auto it = edge_of_.find(EdgeKey(a, b));
@@ -189,24 +187,23 @@ class OldElements {
   std::pair<int, Eigen::Vector4d> Best(const Vec3& y, const std::vector<int>& ancestors,
                                        const std::vector<int>& candidates) const {
     constexpr double kInside = -1e-9;
-    int best = -1, best_score = -1;
-    double best_min = -std::numeric_limits<double>::infinity();
+    // Ranked by: holds y; then, among those holding it, the shared ancestors; then the smallest
+    // coordinate (the deepest inside, or the least outside).
+    using Rank = std::tuple<bool, int, double>;
+    int best = -1;
+    Rank best_rank;
     Eigen::Vector4d best_l = Eigen::Vector4d::Zero();
     for (int e : candidates) {
       const Vec3 xi = inverse_[e] * (y - origin_[e]);
       const Eigen::Vector4d l(1 - xi.sum(), xi[0], xi[1], xi[2]);
-      const double lmin = l.minCoeff();
+      const bool inside = l.minCoeff() >= kInside;
       int score = 0;
-      for (int a : ancestors) score += std::count(tets_[e].begin(), tets_[e].end(), a) > 0;
-      const bool inside = lmin >= kInside, best_inside = best_min >= kInside;
-      const bool better = best < 0 || (inside && !best_inside) ||
-                          (inside && best_inside &&
-                           (score > best_score || (score == best_score && lmin > best_min))) ||
-                          (!inside && !best_inside && lmin > best_min);
-      if (better) {
+      if (inside)
+        for (int a : ancestors) score += std::count(tets_[e].begin(), tets_[e].end(), a) > 0;
+      const Rank rank{inside, score, l.minCoeff()};
+      if (best < 0 || rank > best_rank) {
         best = e;
-        best_score = score;
-        best_min = lmin;
+        best_rank = rank;
         best_l = l;
       }
     }

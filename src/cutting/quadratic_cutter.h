@@ -129,8 +129,8 @@ class QuadraticCuttableMesh {
   bool curved() const { return net_.curved(); }
 
  private:
+  QuadraticControlNet net_;  // before skeleton_: constructed (and checks its input) first
   CuttableMesh skeleton_;
-  QuadraticControlNet net_;
 };
 
 // Checks of a quadratic mesh the remesher must keep: the corner mesh's (CheckMeshInvariants),

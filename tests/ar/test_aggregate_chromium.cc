@@ -14,6 +14,7 @@
 #include "ar/eval/aggregate.h"
 #include "ar/eval/evaluation.h"
 #include "core/file_util.h"
+#include "test_chromium.h"
 #include "test_eval_fixtures.h"
 
 namespace arreg::eval {
@@ -21,31 +22,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string FindChromium() {
-  for (const char* candidate : {"/usr/bin/chromium", "/usr/bin/chromium-browser",
-                                "/usr/bin/google-chrome", "/usr/bin/google-chrome-stable"})
-    if (fs::exists(candidate)) return candidate;
-  return "";
-}
-
-int RunShell(const std::string& command, const fs::path& out, const fs::path& err) {
-  const std::string full = command + " >'" + out.string() + "' 2>'" + err.string() + "'";
-  return std::system(full.c_str());
-}
-
-std::string ChromiumCommand(const std::string& chromium, const fs::path& profile) {
-  return "timeout 120 '" + chromium +
-         "' --headless --no-sandbox --disable-gpu --disable-quic --no-first-run "
-         "--disable-background-networking --disable-component-update --disable-sync "
-         "--disable-dev-shm-usage --user-data-dir='" +
-         profile.string() + "' --enable-logging=stderr --v=0 ";
-}
-
-void ExpectNoConsoleErrors(const std::string& log) {
-  for (const char* marker :
-       {"CONSOLE", "Uncaught", "Failed to load resource", "ERR_FILE_NOT_FOUND"})
-    EXPECT_EQ(log.find(marker), std::string::npos) << "console output in Chromium log:\n" << log;
-}
+using ::arreg::testing::ChromiumCommand;
+using ::arreg::testing::ExpectNoConsoleErrors;
+using ::arreg::testing::FindChromium;
+using ::arreg::testing::RunShell;
 
 // Three evaluated jobs a, b, c at 40, 20 and 30 frames/s, and a failed one.
 fs::path MakeAggregate(const fixtures::Folders& f) {

@@ -299,11 +299,9 @@ void BernsteinTetTerms::FollowCut(const cutting::CutChange& change,
                     "the organ's topology changed, and degree 3 elements cannot be cut");
   ARREG_ASSERT(state_ != nullptr && elastic_, "FollowCut before the first Sync");
   // The configuration before the event: the state's (the body took the event already).
-  RowMatX3d x(mesh_.num_nodes(), 3), v(mesh_.num_nodes(), 3);
-  for (int n = 0; n < mesh_.num_nodes(); ++n) {
-    x.row(n) = state_->positions().row(node_[n]);
-    v.row(n) = state_->velocities().row(node_[n]);
-  }
+  const RowMatX3d x = NodePositions(*state_);
+  RowMatX3d v(mesh_.num_nodes(), 3);
+  for (int n = 0; n < mesh_.num_nodes(); ++n) v.row(n) = state_->velocities().row(node_[n]);
   if (!net_)
     net_.emplace(mesh_, x, v);
   else
